@@ -1,0 +1,39 @@
+# Set-up is part of every target: a fresh machine with Python 3.11 and pip needs nothing else.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+BENCH := $(VENV)/bin/msvdd-bench
+STAMP := $(VENV)/.installed
+
+.PHONY: venv test lint demo bench perf clean
+
+venv: $(STAMP)
+
+# torch is installed first and alone so that no other requirement can pull a CUDA build.
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -c constraints.txt torch==2.13.0
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[dev]'
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+	$(PY) -m pytest
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+
+demo: $(STAMP)
+	$(BENCH) demo --out runs/demo
+
+bench: $(STAMP)
+	$(BENCH) run --preset paper --seed 0 --out runs/paper
+
+perf: $(STAMP)
+	$(BENCH) perf --stage all --json runs/perf.json
+
+clean:
+	rm -rf runs build *.egg-info

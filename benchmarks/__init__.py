@@ -1,0 +1,1 @@
+"""The benchmark: presets, datasets, methods, metrics, reports, performance runs, CLI and Rerun views."""

@@ -1,0 +1,1 @@
+"""One module per `msvdd-bench` subcommand; each exposes `COMMAND: benchmarks.command.Command`."""

@@ -1,0 +1,77 @@
+"""`msvdd-bench perf`: every stage's speed benchmark in one JSON file and one table."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import pkgutil
+import platform
+import tempfile
+from pathlib import Path
+
+from benchmarks import perf
+from benchmarks.command import Command
+from benchmarks.perf.base import PerfStage
+
+
+def stages() -> dict[str, PerfStage]:
+    """Every registered stage, by name."""
+    found: dict[str, PerfStage] = {}
+    for info in sorted(pkgutil.iter_modules(perf.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{perf.__name__}.{info.name}")
+        stage = getattr(module, "STAGE", None)
+        if isinstance(stage, PerfStage):
+            found[stage.name] = stage
+    return found
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--stage", default="all", help="sim, audio, detector, generate or all")
+    p.add_argument("--json", type=Path, required=True, help="where to write the figures")
+    p.add_argument("--quick", action="store_true", help="tiny workloads (smoke test, figures not meaningful)")
+
+
+def _run(args: argparse.Namespace) -> int:
+    known = stages()
+    if args.stage == "all":
+        chosen = list(known.values())
+    elif args.stage in known:
+        chosen = [known[args.stage]]
+    else:
+        raise ValueError(f"--stage {args.stage!r} is unknown; allowed: all, {', '.join(sorted(known))}")
+    figures: dict[str, float] = {}
+    descriptions: dict[str, str] = {}
+    for stage in chosen:
+        figures.update(stage.measure(bool(args.quick)))
+        descriptions.update(stage.describe)
+    report = {
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor(),
+            "cpus": os.cpu_count(),
+        },
+        "quick": bool(args.quick),
+        **figures,
+    }
+    target: Path = args.json
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".perf-", suffix=".json")
+    with os.fdopen(fd, "w") as handle:
+        json.dump(report, handle, indent=2)
+    os.replace(tmp, target)
+    width = max((len(k) for k in figures), default=10)
+    print(f"{'figure':<{width}}  {'value':>12}  meaning")
+    for key, value in figures.items():
+        print(f"{key:<{width}}  {value:>12.4g}  {descriptions.get(key, '')}")
+    print(f"wrote {target}")
+    return 0
+
+
+COMMAND = Command(
+    name="perf",
+    help="measure each stage's speed (real-time factors, ratios) and write them to JSON",
+    add_arguments=_add_arguments,
+    run=_run,
+)

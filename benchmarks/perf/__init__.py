@@ -1,0 +1,1 @@
+"""One module per performance stage; each exposes `STAGE: benchmarks.perf.base.PerfStage`."""

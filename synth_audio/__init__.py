@@ -1,0 +1,1 @@
+"""Procedural binaural audio rendered from a simulated Trace."""

@@ -1,0 +1,273 @@
+"""The paper's audio-IMU network: encoders emitting token sequences, fusion, and decoders.
+
+Shapes (defaults, d = 32, s = 32):
+
+- audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 49, d) tokens,
+  one per 90 audio samples (20.4 ms).
+- imu (N, 400) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM layers) -> (N, 50, d) tokens.
+- `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
+  (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, mean-pooled,
+  summed and projected to s. The ablation variants concatenate, add or multiply the pooled encoder features.
+- `AudioDecoder` (six transposed convolutions) and `ImuDecoder` (LSTM layers) reconstruct the inputs from the
+  encoders' token sequences.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import torch
+from torch import nn
+
+from msvdd.contract import AUDIO_LEN, IMU_LEN
+
+FUSIONS = ("cross_attention", "concat", "sum", "product")
+"""Fusion variants: the paper's cross-attention and the three ablation alternatives."""
+
+AUDIO_STRIDES = (5, 3, 3, 2, 1, 1)
+"""Stride of each of the six audio convolutions; their product (90) is the audio samples per token."""
+AUDIO_CHANNELS = (16, 32, 48, 64, 64, 64)
+"""Output channels of each audio convolution."""
+AUDIO_TOKENS = AUDIO_LEN // math.prod(AUDIO_STRIDES)
+"""Audio tokens per window (98)."""
+IMU_FRAME = 8
+"""IMU samples per IMU token (40 ms at 200 Hz)."""
+IMU_TOKENS = IMU_LEN // IMU_FRAME
+"""IMU tokens per window (50)."""
+
+
+class NetConfig(Protocol):
+    """The fields of `MSVDDConfig` the network reads (any object with them will do)."""
+
+    @property
+    def d(self) -> int: ...
+    @property
+    def s(self) -> int: ...
+    @property
+    def fusion(self) -> str: ...
+    @property
+    def use_audio(self) -> bool: ...
+    @property
+    def use_imu(self) -> bool: ...
+    @property
+    def use_reconstruction(self) -> bool: ...
+
+
+def _conv_padding(stride: int) -> tuple[int, int]:
+    """(kernel, padding) so that a convolution maps length L (divisible by stride) to L / stride."""
+    pad = max(1, stride // 2 + 1)
+    return stride + 2 * pad, pad
+
+
+class AudioEncoder(nn.Module):
+    """CRNN: six 1-D convolutions (strided, GELU) and one LSTM; (N, 8820, 2) -> (N, T_A, d) tokens."""
+
+    def __init__(self, d: int) -> None:
+        super().__init__()
+        layers: list[nn.Module] = []
+        c_in = 2
+        for stride, c_out in zip(AUDIO_STRIDES, AUDIO_CHANNELS, strict=True):
+            kernel, pad = _conv_padding(stride)
+            layers += [nn.Conv1d(c_in, c_out, kernel, stride=stride, padding=pad), nn.GELU()]
+            c_in = c_out
+        self.convs = nn.Sequential(*layers)
+        self.lstm = nn.LSTM(c_in, d, batch_first=True)
+
+    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+        """audio (N, L, 2) -> tokens (N, L / 90, d)."""
+        h = self.convs(audio.transpose(1, 2))
+        tokens, _ = self.lstm(h.transpose(1, 2))
+        return tokens
+
+
+class ImuEncoder(nn.Module):
+    """Two LSTM layers over 8-sample IMU frames; (N, 400) -> (N, 50, d) tokens."""
+
+    def __init__(self, d: int) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(IMU_FRAME, d, num_layers=2, batch_first=True)
+
+    def forward(self, imu: torch.Tensor) -> torch.Tensor:
+        """imu (N, 400) -> tokens (N, 50, d)."""
+        frames = imu.reshape(imu.shape[0], -1, IMU_FRAME)
+        tokens, _ = self.lstm(frames)
+        return tokens
+
+
+class AudioDecoder(nn.Module):
+    """Six 1-D transposed convolutions mirroring `AudioEncoder`; (N, T_A, d) -> (N, 8820, 2)."""
+
+    def __init__(self, d: int) -> None:
+        super().__init__()
+        layers: list[nn.Module] = []
+        chans = (d, *reversed(AUDIO_CHANNELS[:-1]))
+        outs = (*reversed(AUDIO_CHANNELS[:-1]), 2)
+        for i, (stride, c_in, c_out) in enumerate(zip(reversed(AUDIO_STRIDES), chans, outs, strict=True)):
+            kernel, pad = _conv_padding(stride)
+            layers.append(nn.ConvTranspose1d(c_in, c_out, kernel, stride=stride, padding=pad))
+            if i < len(AUDIO_STRIDES) - 1:
+                layers.append(nn.GELU())
+        self.deconvs = nn.Sequential(*layers)
+
+    def forward(self, tokens: torch.Tensor) -> torch.Tensor:
+        """tokens (N, T_A, d) -> audio (N, 90 T_A, 2)."""
+        out = self.deconvs(tokens.transpose(1, 2))
+        return out.transpose(1, 2)
+
+
+class ImuDecoder(nn.Module):
+    """Two LSTM layers and a linear read-out of 8 samples per token; (N, 50, d) -> (N, 400)."""
+
+    def __init__(self, d: int) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(d, d, num_layers=2, batch_first=True)
+        self.out = nn.Linear(d, IMU_FRAME)
+
+    def forward(self, tokens: torch.Tensor) -> torch.Tensor:
+        """tokens (N, T_I, d) -> imu (N, 8 T_I)."""
+        h, _ = self.lstm(tokens)
+        return self.out(h).reshape(tokens.shape[0], -1)
+
+
+class CrossAttentionBlock(nn.Module):
+    """Single-head cross-attention softmax(Q K^T / sqrt(d)) V, then an MLP; both with residuals."""
+
+    def __init__(self, d: int) -> None:
+        super().__init__()
+        self.norm_q = nn.LayerNorm(d)
+        self.norm_kv = nn.LayerNorm(d)
+        self.q = nn.Linear(d, d)
+        self.k = nn.Linear(d, d)
+        self.v = nn.Linear(d, d)
+        self.o = nn.Linear(d, d)
+        self.norm_mlp = nn.LayerNorm(d)
+        self.mlp = nn.Sequential(nn.Linear(d, 2 * d), nn.GELU(), nn.Linear(2 * d, d))
+        self.scale = 1.0 / math.sqrt(d)
+
+    def attention(self, queries: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
+        """(N, Tq, Tk) attention weights of `queries` (N, Tq, d) over `context` (N, Tk, d)."""
+        q = self.q(self.norm_q(queries))
+        k = self.k(self.norm_kv(context))
+        return torch.softmax(q @ k.transpose(1, 2) * self.scale, dim=-1)
+
+    def forward(self, queries: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
+        """queries (N, Tq, d), context (N, Tk, d) -> (N, Tq, d)."""
+        weights = self.attention(queries, context)
+        h = queries + self.o(weights @ self.v(self.norm_kv(context)))
+        return h + self.mlp(self.norm_mlp(h))
+
+
+@dataclass
+class FusionOutput:
+    """What `Fusion` returns."""
+
+    z: torch.Tensor
+    """(N, s) fused feature."""
+    fused_a: torch.Tensor | None
+    """(N, d) pooled audio branch after fusion (z_IA: audio queries IMU); None if not applicable."""
+    fused_i: torch.Tensor | None
+    """(N, d) pooled IMU branch after fusion (z_AI: IMU queries audio); None if not applicable."""
+
+
+class Fusion(nn.Module):
+    """Fuses audio and IMU token sequences into z (N, s): cross-attention, concat, sum or product.
+
+    With only one modality present, the pooled tokens of that modality are projected to s.
+    """
+
+    def __init__(self, d: int, s: int, kind: str, use_audio: bool = True, use_imu: bool = True) -> None:
+        super().__init__()
+        if kind not in FUSIONS:
+            raise ValueError(f"fusion {kind!r}; allowed: {', '.join(FUSIONS)}")
+        if not (use_audio or use_imu):
+            raise ValueError("use_audio and use_imu are both False; at least one modality is needed")
+        self.kind = kind
+        self.both = use_audio and use_imu
+        self.audio_queries_imu: CrossAttentionBlock | None = None
+        self.imu_queries_audio: CrossAttentionBlock | None = None
+        if self.both and kind == "cross_attention":
+            self.audio_queries_imu = CrossAttentionBlock(d)
+            self.imu_queries_audio = CrossAttentionBlock(d)
+        width = 2 * d if (self.both and kind == "concat") else d
+        self.project = nn.Linear(width, s)
+
+    def forward(self, audio_tokens: torch.Tensor | None, imu_tokens: torch.Tensor | None) -> FusionOutput:
+        """Token sequences (N, T, d) (None for an absent modality) -> `FusionOutput`."""
+        if audio_tokens is None or imu_tokens is None:
+            tokens = audio_tokens if audio_tokens is not None else imu_tokens
+            if tokens is None:
+                raise ValueError("Fusion needs at least one token sequence")
+            return FusionOutput(z=self.project(tokens.mean(dim=1)), fused_a=None, fused_i=None)
+        if self.audio_queries_imu is not None and self.imu_queries_audio is not None:
+            z_ia = self.audio_queries_imu(audio_tokens, imu_tokens).mean(dim=1)
+            z_ai = self.imu_queries_audio(imu_tokens, audio_tokens).mean(dim=1)
+            return FusionOutput(z=self.project(z_ia + z_ai), fused_a=z_ia, fused_i=z_ai)
+        z_a, z_i = audio_tokens.mean(dim=1), imu_tokens.mean(dim=1)
+        if self.kind == "concat":
+            fused = torch.cat([z_a, z_i], dim=1)
+        elif self.kind == "sum":
+            fused = z_a + z_i
+        else:
+            fused = z_a * z_i
+        return FusionOutput(z=self.project(fused), fused_a=None, fused_i=None)
+
+
+@dataclass
+class NetOutput:
+    """What `FusionNet.forward` returns (None where a modality or branch is switched off)."""
+
+    z: torch.Tensor
+    """(N, s) fused embedding."""
+    audio_tokens: torch.Tensor | None
+    """(N, T_A, d) audio encoder tokens."""
+    imu_tokens: torch.Tensor | None
+    """(N, T_I, d) IMU encoder tokens."""
+    z_a: torch.Tensor | None
+    """(N, d) mean-pooled audio encoder feature."""
+    z_i: torch.Tensor | None
+    """(N, d) mean-pooled IMU encoder feature."""
+    fused_a: torch.Tensor | None
+    """(N, d) pooled audio branch after cross-attention (z_IA)."""
+    fused_i: torch.Tensor | None
+    """(N, d) pooled IMU branch after cross-attention (z_AI)."""
+    audio_rec: torch.Tensor | None
+    """(N, 8820, 2) reconstructed audio."""
+    imu_rec: torch.Tensor | None
+    """(N, 400) reconstructed IMU."""
+
+
+class FusionNet(nn.Module):
+    """Encoders, fusion and decoders as switched by the config (use_audio, use_imu, use_reconstruction)."""
+
+    def __init__(self, config: NetConfig) -> None:
+        super().__init__()
+        d, s = config.d, config.s
+        self.use_audio = config.use_audio
+        self.use_imu = config.use_imu
+        self.audio_encoder = AudioEncoder(d) if config.use_audio else None
+        self.imu_encoder = ImuEncoder(d) if config.use_imu else None
+        self.fusion = Fusion(d, s, config.fusion, config.use_audio, config.use_imu)
+        rec = config.use_reconstruction
+        self.audio_decoder = AudioDecoder(d) if (rec and config.use_audio) else None
+        self.imu_decoder = ImuDecoder(d) if (rec and config.use_imu) else None
+
+    def forward(self, audio: torch.Tensor, imu: torch.Tensor) -> NetOutput:
+        """audio (N, 8820, 2), imu (N, 400), both normalised -> `NetOutput`."""
+        a_tok = self.audio_encoder(audio) if self.audio_encoder is not None else None
+        i_tok = self.imu_encoder(imu) if self.imu_encoder is not None else None
+        fused = self.fusion(a_tok, i_tok)
+        a_rec = self.audio_decoder(a_tok) if (self.audio_decoder is not None and a_tok is not None) else None
+        i_rec = self.imu_decoder(i_tok) if (self.imu_decoder is not None and i_tok is not None) else None
+        return NetOutput(
+            z=fused.z,
+            audio_tokens=a_tok,
+            imu_tokens=i_tok,
+            z_a=None if a_tok is None else a_tok.mean(dim=1),
+            z_i=None if i_tok is None else i_tok.mean(dim=1),
+            fused_a=fused.fused_a,
+            fused_i=fused.fused_i,
+            audio_rec=a_rec,
+            imu_rec=i_rec,
+        )

@@ -1,0 +1,38 @@
+"""Every detector the benchmark runs, by name: M-SVDD, its ablations and the paper's baselines.
+
+from benchmarks.methods import make, names
+det = make("iforest-early", seed=0, scale="quick").fit(train)
+save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("runs/x/model")
+"""
+
+from benchmarks.methods import naive as _naive
+from benchmarks.methods import shallow as _shallow
+from benchmarks.methods.base import SCALES, THRESHOLD_PERCENTILE
+from benchmarks.methods.registry import (
+    FAMILIES,
+    MODALITIES,
+    MethodSpec,
+    load_detector,
+    make,
+    names,
+    register,
+    save_detector,
+    spec,
+)
+
+_naive.register_methods()
+_shallow.register_methods()
+
+__all__ = [
+    "FAMILIES",
+    "MODALITIES",
+    "SCALES",
+    "THRESHOLD_PERCENTILE",
+    "MethodSpec",
+    "load_detector",
+    "make",
+    "names",
+    "register",
+    "save_detector",
+    "spec",
+]

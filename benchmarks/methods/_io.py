@@ -1,0 +1,97 @@
+"""Atomic, pickle-free model files: a JSON header plus named float arrays in one `.npz`."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_HEADER_KEY = "__header__"
+
+
+class ModelFileError(ValueError):
+    """A model file is missing, malformed, or of another method or format version."""
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path next to `path`; move it onto `path` only if the block succeeds."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}-", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write `text` to `path` atomically (temp file + os.replace)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def save_npz(
+    path: str | os.PathLike[str],
+    kind: str,
+    version: int,
+    header: dict[str, Any],
+    arrays: dict[str, np.ndarray],
+) -> None:
+    """Write a header (JSON-able dict) and numeric arrays to one `.npz` file, atomically, without pickle.
+
+    Args:
+        path: destination file (any suffix; nothing is appended).
+        kind: model kind stored in the header and checked by `load_npz`.
+        version: format version stored in the header and checked by `load_npz`.
+        header: extra JSON-able fields.
+        arrays: numeric arrays (no object dtype).
+    """
+    full = {"kind": kind, "format_version": version, **header}
+    payload = {_HEADER_KEY: np.array(json.dumps(full, sort_keys=True))}
+    for name, arr in arrays.items():
+        a = np.asarray(arr)
+        if a.dtype == object:
+            raise TypeError(f"array {name!r} has object dtype; model files hold numeric arrays only")
+        payload[name] = a
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **payload)  # type: ignore[arg-type]
+
+
+def load_npz(
+    path: str | os.PathLike[str], kind: str, version: int
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a file written by `save_npz`; check its kind and format version.
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ModelFileError: the file is not such a model file, or has another kind or format version.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"model file {p} does not exist")
+    try:
+        with np.load(p, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as exc:
+        raise ModelFileError(f"model file {p} is not a readable .npz model file: {exc}") from exc
+    if _HEADER_KEY not in arrays:
+        raise ModelFileError(f"model file {p} has no header; it was not written by this benchmark")
+    header = json.loads(str(arrays.pop(_HEADER_KEY)))
+    if header.get("kind") != kind:
+        raise ModelFileError(f"model file {p} holds a {header.get('kind')!r} model, expected {kind!r}")
+    if header.get("format_version") != version:
+        raise ModelFileError(
+            f"model file {p} has format_version {header.get('format_version')}; this code reads {version}"
+        )
+    return header, arrays

@@ -1,0 +1,158 @@
+"""The method registry: every detector by name, built for a seed and a training scale, saved and loaded."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+from benchmarks.methods._io import ModelFileError, atomic_path, write_text_atomic
+from benchmarks.methods.base import check_scale
+from msvdd.contract import Detector
+
+FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "naive")
+"""Method families: M-SVDD and its ablations, deep baselines, shallow baselines, naive sanity baselines."""
+
+MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu")
+"""Which sensors a method reads."""
+
+METHOD_FORMAT_VERSION = 1
+"""Version of the `method.json` layout written by `save_detector`."""
+
+METHOD_FILE = "method.json"
+MODEL_FILE = "model.bin"
+
+Factory = Callable[[int, str], Detector]
+"""factory(seed, scale) -> an unfitted detector."""
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One registered method."""
+
+    name: str
+    """Registry name, e.g. `msvdd`, `iforest-early`."""
+    factory: Factory
+    """factory(seed, scale) -> an unfitted detector."""
+    family: str
+    """One of `FAMILIES`."""
+    modality: str
+    """One of `MODALITIES`."""
+    description: str
+    """One line for tables and `--help`."""
+
+
+_REGISTRY: dict[str, MethodSpec] = {}
+
+
+def register(name: str, factory: Factory, *, family: str, modality: str, description: str) -> None:
+    """Register a method under `name`.
+
+    Args:
+        name: unique registry name.
+        factory: factory(seed, scale) -> unfitted detector; its class's `load` reads saved models.
+        family: one of `FAMILIES`.
+        modality: one of `MODALITIES`.
+        description: one line.
+    """
+    if name in _REGISTRY:
+        raise ValueError(f"method {name!r} is already registered")
+    if family not in FAMILIES:
+        raise ValueError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
+    if modality not in MODALITIES:
+        raise ValueError(f"modality {modality!r} is unknown; allowed: {', '.join(MODALITIES)}")
+    _REGISTRY[name] = MethodSpec(name, factory, family, modality, description)
+
+
+def names(family: str | None = None) -> list[str]:
+    """Registered method names in registration order, optionally of one family."""
+    if family is not None and family not in FAMILIES:
+        raise ValueError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
+    return [n for n, s in _REGISTRY.items() if family is None or s.family == family]
+
+
+def spec(name: str) -> MethodSpec:
+    """The `MethodSpec` of `name`; ValueError listing the allowed names if unknown."""
+    if name not in _REGISTRY:
+        raise ValueError(f"method {name!r} is unknown; allowed: {', '.join(_REGISTRY)}")
+    return _REGISTRY[name]
+
+
+def make(name: str, *, seed: int, scale: str) -> Detector:
+    """An unfitted detector of method `name` for `seed` and training `scale` (tiny, quick or paper)."""
+    method = spec(name)
+    check_scale(scale)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+    return method.factory(seed, scale)
+
+
+def _versions() -> dict[str, str]:
+    found = {"python": platform.python_version()}
+    for dist in ("msvdd-bench", "numpy", "scipy", "torch", "scikit-learn"):
+        with contextlib.suppress(metadata.PackageNotFoundError):
+            found[dist] = metadata.version(dist)
+    return found
+
+
+def save_detector(detector: Detector, name: str, directory: str | os.PathLike[str]) -> Path:
+    """Write `method.json` and the model file of a fitted detector into `directory`.
+
+    `method.json` is written last (and any old one removed first), so a folder with a `method.json`
+    always holds a complete model. Returns the directory.
+    """
+    method = spec(name)
+    target = Path(directory)
+    target.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(target / METHOD_FILE)
+    with atomic_path(target / MODEL_FILE) as tmp:
+        detector.save(tmp)
+    info = {
+        "method": method.name,
+        "family": method.family,
+        "modality": method.modality,
+        "class": f"{type(detector).__module__}.{type(detector).__qualname__}",
+        "format_version": METHOD_FORMAT_VERSION,
+        "model_file": MODEL_FILE,
+        "threshold": float(detector.threshold_),
+        "versions": _versions(),
+    }
+    write_text_atomic(target / METHOD_FILE, json.dumps(info, indent=2, sort_keys=True) + "\n")
+    return target
+
+
+def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
+    """Read a folder written by `save_detector`: (method name, fitted detector).
+
+    Raises:
+        FileNotFoundError: `method.json` or the model file is missing (the message names the path).
+        ModelFileError: another format version, an unknown method, or a malformed `method.json`.
+    """
+    folder = Path(directory)
+    meta_path = folder / METHOD_FILE
+    if not meta_path.is_file():
+        raise FileNotFoundError(f"{meta_path} does not exist; not a saved model folder (or a partial one)")
+    try:
+        info = json.loads(meta_path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"{meta_path} is not valid JSON: {exc}") from exc
+    version = info.get("format_version")
+    if version != METHOD_FORMAT_VERSION:
+        raise ModelFileError(
+            f"{meta_path} has format_version {version}; this code reads {METHOD_FORMAT_VERSION}"
+        )
+    name = info.get("method")
+    if name not in _REGISTRY:
+        raise ModelFileError(f"{meta_path} names method {name!r}; registered: {', '.join(_REGISTRY)}")
+    model_path = folder / str(info.get("model_file", MODEL_FILE))
+    if not model_path.is_file():
+        raise FileNotFoundError(f"{model_path} does not exist (named by {meta_path})")
+    cls = type(make(name, seed=0, scale="tiny"))
+    detector: Detector = cls.load(model_path)
+    return name, detector

@@ -1,0 +1,237 @@
+"""Shallow baselines on handcrafted features: Isolation Forest, OCSVM and kernel SVDD, early and late fusion.
+
+Early fusion: one model on the concatenated audio and IMU features. Late fusion: one model per modality;
+each modality's scores are z-normalised with the mean and standard deviation of its TRAINING scores and
+the two are averaged. Features are standardised with training statistics first.
+
+Saving: kernel SVDD stores its support vectors and weights. scikit-learn models are not pickled: the file
+stores the standardised training features and the hyper-parameters, and `load` refits deterministically
+(fixed random_state, one thread), then checks that the refit reproduces the stored training scores bit for
+bit; a different scikit-learn version that changes them is refused with a clear error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Self
+
+import numpy as np
+from sklearn.ensemble import IsolationForest
+from sklearn.svm import OneClassSVM
+
+from benchmarks.features import FeatureConfig, window_features
+from benchmarks.methods._io import ModelFileError
+from benchmarks.methods.base import WindowDetector, check_scale
+from benchmarks.methods.kernel_svdd import KernelSVDD
+from msvdd.contract import Windows
+
+MODELS: tuple[str, ...] = ("iforest", "ocsvm", "svdd")
+"""Shallow model kinds."""
+FUSIONS: tuple[str, ...] = ("early", "late")
+"""Feature fusion modes."""
+NU = 0.05
+"""OCSVM nu and SVDD outlier fraction (C = 1 / (nu n)), matching the 95th-percentile threshold."""
+_STD_FLOOR = 1e-8
+
+
+@dataclass(frozen=True)
+class ShallowConfig:
+    """Hyper-parameters of a shallow baseline."""
+
+    model: str
+    """One of `MODELS`."""
+    fusion: str
+    """`early` (one model on concatenated features) or `late` (one per modality, scores z-normalised)."""
+    seed: int = 0
+    """Seed of the Isolation Forest and of any subsample."""
+    n_estimators: int = 100
+    """Isolation Forest trees."""
+    max_train: int = 2000
+    """Training rows for OCSVM and SVDD (uniform subsample without replacement if more)."""
+
+    @classmethod
+    def for_scale(cls, model: str, fusion: str, seed: int, scale: str) -> ShallowConfig:
+        """The budget of each scale: tiny (tests), quick, paper."""
+        check_scale(scale)
+        trees = {"tiny": 50, "quick": 100, "paper": 200}[scale]
+        rows = {"tiny": 300, "quick": 1500, "paper": 3000}[scale]
+        return cls(model=model, fusion=fusion, seed=seed, n_estimators=trees, max_train=rows)
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"model {self.model!r} is unknown; allowed: {', '.join(MODELS)}")
+        if self.fusion not in FUSIONS:
+            raise ValueError(f"fusion {self.fusion!r} is unknown; allowed: {', '.join(FUSIONS)}")
+
+
+class _Block:
+    """One model on one feature block: standardisation, the model, and its training-score statistics."""
+
+    def __init__(self, config: ShallowConfig, mean: np.ndarray, std: np.ndarray) -> None:
+        self.config = config
+        self.mean = mean
+        self.std = std
+        self.train_x = np.zeros((0, mean.size))
+        self.train_scores = np.zeros(0)
+        self.sklearn: IsolationForest | OneClassSVM | None = None
+        self.svdd: KernelSVDD | None = None
+
+    @classmethod
+    def fit(cls, config: ShallowConfig, features: np.ndarray) -> _Block:
+        block = cls(config, features.mean(axis=0), np.maximum(features.std(axis=0), _STD_FLOOR))
+        block._fit_model(block.standardise(features))
+        return block
+
+    def standardise(self, features: np.ndarray) -> np.ndarray:
+        return (features - self.mean) / self.std
+
+    def _fit_model(self, x: np.ndarray) -> None:
+        c = self.config
+        if c.model == "svdd":
+            self.svdd = KernelSVDD(nu=NU, max_train=c.max_train, seed=c.seed).fit(x)
+            self.train_x = np.zeros((0, x.shape[1]))
+        else:
+            if x.shape[0] > c.max_train and c.model == "ocsvm":
+                pick = np.random.default_rng(c.seed).choice(x.shape[0], c.max_train, replace=False)
+                x = x[np.sort(pick)]
+            if c.model == "iforest":
+                self.sklearn = IsolationForest(
+                    n_estimators=c.n_estimators, random_state=c.seed, n_jobs=1
+                ).fit(x)
+            else:
+                self.sklearn = OneClassSVM(kernel="rbf", nu=NU, gamma="scale").fit(x)
+            self.train_x = x
+        self.train_scores = self.raw_scores(x)
+
+    def raw_scores(self, x: np.ndarray) -> np.ndarray:
+        """Model scores of standardised rows, higher = more anomalous."""
+        if self.svdd is not None:
+            return self.svdd.score(x)
+        if isinstance(self.sklearn, IsolationForest):
+            return -self.sklearn.score_samples(x)
+        if isinstance(self.sklearn, OneClassSVM):
+            return -self.sklearn.decision_function(x)
+        raise RuntimeError("block has no fitted model")
+
+    def state(self, prefix: str) -> dict[str, np.ndarray]:
+        arrays = {
+            "mean": self.mean,
+            "std": self.std,
+            "train_x": self.train_x,
+            "train_scores": self.train_scores,
+        }
+        if self.svdd is not None:
+            arrays |= {
+                "support": self.svdd.support_,
+                "alpha": self.svdd.alpha_,
+                "svdd_scalars": np.array([self.svdd.gamma_, self.svdd.r2_, self.svdd.aka_]),
+            }
+        return {f"{prefix}{k}": v for k, v in arrays.items()}
+
+    @classmethod
+    def from_state(cls, config: ShallowConfig, prefix: str, arrays: dict[str, np.ndarray]) -> _Block:
+        block = cls(config, arrays[f"{prefix}mean"], arrays[f"{prefix}std"])
+        block.train_scores = arrays[f"{prefix}train_scores"]
+        if config.model == "svdd":
+            svdd = KernelSVDD(nu=NU, max_train=config.max_train, seed=config.seed)
+            svdd.support_, svdd.alpha_ = arrays[f"{prefix}support"], arrays[f"{prefix}alpha"]
+            svdd.gamma_, svdd.r2_, svdd.aka_ = (float(v) for v in arrays[f"{prefix}svdd_scalars"])
+            block.svdd = svdd
+            return block
+        stored = block.train_scores
+        block._fit_model(arrays[f"{prefix}train_x"])
+        if not np.array_equal(block.train_scores, stored):
+            raise ModelFileError(
+                f"refitting the saved {config.model} did not reproduce its training scores "
+                "(was it saved with another scikit-learn version?); retrain it"
+            )
+        return block
+
+
+class ShallowDetector(WindowDetector):
+    """A shallow model on handcrafted log-mel and IMU features, in early or late fusion."""
+
+    kind = "shallow"
+    min_train = 4
+
+    def __init__(self, config: ShallowConfig, features: FeatureConfig | None = None) -> None:
+        super().__init__()
+        self.config = config
+        self.features = features if features is not None else FeatureConfig()
+        self._blocks: list[_Block] = []
+
+    def _feature_blocks(self, batch: Windows) -> list[np.ndarray]:
+        f = window_features(batch, self.features)
+        return [f.early()] if self.config.fusion == "early" else [f.audio, f.imu]
+
+    def _fit(self, train: Windows, val: Windows | None) -> None:
+        self._blocks = [_Block.fit(self.config, x) for x in self._feature_blocks(train)]
+
+    def _score(self, batch: Windows) -> np.ndarray:
+        parts = []
+        for block, x in zip(self._blocks, self._feature_blocks(batch), strict=True):
+            raw = block.raw_scores(block.standardise(x))
+            if len(self._blocks) > 1:
+                ref = block.train_scores
+                raw = (raw - ref.mean()) / max(float(ref.std()), _STD_FLOOR)
+            parts.append(raw)
+        return np.mean(parts, axis=0)
+
+    def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        c = self.config
+        header = {
+            "config": {
+                "model": c.model,
+                "fusion": c.fusion,
+                "seed": c.seed,
+                "n_estimators": c.n_estimators,
+                "max_train": c.max_train,
+            },
+            "features": {**self.features.__dict__, "imu_band_edges": list(self.features.imu_band_edges)},
+            "n_blocks": len(self._blocks),
+        }
+        arrays: dict[str, np.ndarray] = {}
+        for b, block in enumerate(self._blocks):
+            arrays |= block.state(f"b{b}_")
+        return header, arrays
+
+    @classmethod
+    def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
+        config = ShallowConfig(**header["config"])
+        feat = dict(header["features"])
+        feat["imu_band_edges"] = tuple(feat["imu_band_edges"])
+        detector = cls(config, FeatureConfig(**feat))
+        detector._blocks = [
+            _Block.from_state(config, f"b{b}_", arrays) for b in range(int(header["n_blocks"]))
+        ]
+        return detector
+
+
+_TITLES = {
+    "iforest": "Isolation Forest",
+    "ocsvm": "one-class SVM (RBF)",
+    "svdd": "kernel SVDD (RBF, SMO dual)",
+}
+
+
+def _factory(model: str, fusion: str) -> Any:
+    def make(seed: int, scale: str) -> ShallowDetector:
+        return ShallowDetector(ShallowConfig.for_scale(model, fusion, seed, scale))
+
+    return make
+
+
+def register_methods() -> None:
+    """Register `iforest-early`, `iforest-late`, `ocsvm-early`, `ocsvm-late`, `svdd-early`, `svdd-late`."""
+    from benchmarks.methods.registry import register
+
+    for model in MODELS:
+        for fusion in FUSIONS:
+            how = "one model on concatenated" if fusion == "early" else "one model per modality on"
+            register(
+                f"{model}-{fusion}",
+                _factory(model, fusion),
+                family="shallow",
+                modality="audio+imu",
+                description=f"{_TITLES[model]}, {fusion} fusion: {how} log-mel + IMU features",
+            )

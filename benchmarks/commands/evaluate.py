@@ -1,0 +1,63 @@
+"""`msvdd-bench evaluate`: score saved models on a dataset's test windows and write the report."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+from benchmarks import methods
+from benchmarks.command import Command
+from benchmarks.dataset import open_dataset
+from benchmarks.pipeline import TrainedModel, score_and_measure
+from benchmarks.report import RunInfo, write_report
+from benchmarks.runner import machine_description
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", type=Path, required=True, help="dataset folder (from `generate`)")
+    p.add_argument("--model", type=Path, nargs="+", required=True, help="model folder(s) (from `train`)")
+    p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.out.exists():
+        raise FileExistsError(f"run folder exists already: {args.out}")
+    dataset = open_dataset(args.data)
+    models: list[TrainedModel] = []
+    for folder in args.model:
+        name, detector = methods.load_detector(folder)
+        run_index = sum(1 for m in models if m.method == name)  # the "seed" column counts runs of a method
+        models.append(TrainedModel(name, run_index, detector, Path(folder), float("nan")))
+    scores, per_method, rows = score_and_measure(dataset, models)
+    info = RunInfo(
+        preset=str(dataset.preset.name),
+        dataset_seed=int(dataset.manifest["seed"]),
+        dataset=str(args.data),
+        command="msvdd-bench " + " ".join(sys.argv[1:]),
+        machine=machine_description(),
+        date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
+        train_seconds={},
+    )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{args.out.name}.partial-", dir=args.out.parent))
+    try:
+        write_report(tmp, info, rows, scores, per_method)
+        os.replace(tmp, args.out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    print((args.out / "results.md").read_text())
+    return 0
+
+
+COMMAND = Command(
+    name="evaluate",
+    help="score saved models on the test windows; write results.json, scores.csv, results.md, ROC figures",
+    add_arguments=_add_arguments,
+    run=_run,
+)

@@ -1,0 +1,39 @@
+"""`msvdd-bench generate`: simulate and render a dataset from a preset."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from benchmarks.command import Command
+from benchmarks.dataset import generate, open_dataset
+from benchmarks.presets import preset_names
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--preset", default="quick", help=f"dataset preset: {', '.join(preset_names())}")
+    p.add_argument("--seed", type=int, default=0, help="dataset seed (same preset and seed, same checksums)")
+    p.add_argument("--out", type=Path, required=True, help="dataset folder to create (must not exist)")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _run(args: argparse.Namespace) -> int:
+    path = generate(args.preset, args.seed, args.out, workers=args.workers, progress=not args.no_progress)
+    dataset = open_dataset(path, verify=False)
+    counts: dict[tuple[str, str], int] = {}
+    for row in dataset.windows:
+        counts[(row.split, row.kind)] = counts.get((row.split, row.kind), 0) + 1
+    episodes = dataset.manifest["episodes"]
+    print(f"wrote {path}: {len(episodes)} episodes, {len(dataset.windows)} windows")
+    for (split, kind), n in sorted(counts.items()):
+        print(f"  {split:<5} {kind:<10} {n:>6}")
+    return 0
+
+
+COMMAND = Command(
+    name="generate",
+    help="simulate and render a dataset (episodes, windows.csv, manifest.json) from a preset",
+    add_arguments=_add_arguments,
+    run=_run,
+)

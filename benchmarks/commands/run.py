@@ -1,0 +1,61 @@
+"""`msvdd-bench run`: generate, train every method, evaluate and report, in one command."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from benchmarks.command import Command
+from benchmarks.presets import preset_names
+from benchmarks.runner import run_benchmark
+
+
+def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = "quick") -> None:
+    """Options shared by `run` and `demo`."""
+    p.add_argument("--preset", default=default_preset, help=f"dataset preset: {', '.join(preset_names())}")
+    p.add_argument("--seed", type=int, default=0, help="dataset seed")
+    p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
+    p.add_argument("--methods", nargs="+", default=None, help="methods to train (default: the preset's list)")
+    p.add_argument("--data", type=Path, default=None, help="reuse this dataset instead of generating one")
+    p.add_argument(
+        "--workers", type=int, default=None, help="generation worker processes (default: one per CPU)"
+    )
+    p.add_argument(
+        "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
+    )
+    p.add_argument(
+        "--seeds", type=int, nargs="+", default=None, help="training seeds (default: the preset's)"
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def run_from_args(args: argparse.Namespace) -> Path:
+    """Run the benchmark as the parsed options say."""
+    return run_benchmark(
+        args.out,
+        preset_name=args.preset,
+        seed=args.seed,
+        method_names=args.methods,
+        data=args.data,
+        workers=args.workers,
+        scale=args.scale,
+        seeds=args.seeds,
+        command="msvdd-bench " + " ".join(sys.argv[1:]),
+        progress=not args.no_progress,
+    )
+
+
+def _run(args: argparse.Namespace) -> int:
+    out = run_from_args(args)
+    print((out / "results.md").read_text())
+    print(f"wrote {out}")
+    return 0
+
+
+COMMAND = Command(
+    name="run",
+    help="generate a dataset, train every method, evaluate and report, in one command",
+    add_arguments=add_run_arguments,
+    run=_run,
+)

@@ -1,0 +1,43 @@
+"""`msvdd-bench train`: fit one method on a dataset's nominal training windows."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from benchmarks import methods
+from benchmarks.command import Command
+from benchmarks.dataset import open_dataset
+from benchmarks.pipeline import train_method
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", type=Path, required=True, help="dataset folder (from `generate`)")
+    p.add_argument("--method", required=True, help="method name (see `msvdd-bench methods`)")
+    p.add_argument("--out", type=Path, required=True, help="model folder to write")
+    p.add_argument("--seed", type=int, default=0, help="training seed")
+    p.add_argument(
+        "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
+    )
+
+
+def _run(args: argparse.Namespace) -> int:
+    methods.spec(args.method)
+    if args.out.exists() and any(args.out.iterdir()):
+        raise FileExistsError(f"model folder exists and is not empty: {args.out}")
+    dataset = open_dataset(args.data)
+    scale = args.scale or dataset.preset.method_scale
+    model = train_method(dataset, args.method, args.seed, scale, args.out)
+    print(
+        f"trained {args.method} (seed {args.seed}, scale {scale}) in {model.train_seconds:.1f} s; "
+        f"threshold {model.detector.threshold_:.6g}; saved to {model.path}"
+    )
+    return 0
+
+
+COMMAND = Command(
+    name="train",
+    help="fit one method on a dataset's nominal training windows and save it",
+    add_arguments=_add_arguments,
+    run=_run,
+)

@@ -1,0 +1,438 @@
+"""Datasets: plan episodes from a preset, simulate and render them in parallel, cut and label windows.
+
+A dataset folder holds one folder per episode (see `benchmarks.episode`), `windows.csv` (one row per
+2 s window: episode, start, split, label, kind, sub-kind, wheel) and `manifest.json` (format version,
+preset, seed, episodes with their split and the sha256 of every file). It is written to a temporary
+folder beside the target and renamed into place, so a dataset folder is either complete or absent.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import multiprocessing
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+import sim
+import synth_audio
+from benchmarks.episode import (
+    EPISODE_FILES,
+    EpisodeMeta,
+    read_episode,
+    software_versions,
+    write_episode,
+)
+from benchmarks.presets import Preset, get_preset
+from msvdd import preprocess
+from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
+from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
+
+DATASET_FORMAT_VERSION = 1
+"""Version of the dataset layout (manifest, window table, episode folders)."""
+
+WINDOW_COLUMNS: tuple[str, ...] = (
+    "window_id",
+    "episode",
+    "start_s",
+    "split",
+    "label",
+    "kind",
+    "sub_kind",
+    "wheel",
+    "unit",
+)
+"""Columns of `windows.csv`."""
+
+MECHANICAL_MIN_FRACTION = 0.5
+"""A window is a mechanical-fault window when at least this fraction of it has the fault active."""
+
+
+class DatasetError(ValueError):
+    """A dataset folder is incomplete, corrupt or of another format; the message names the file."""
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One planned episode: enough to simulate and render it in any process."""
+
+    episode_id: str
+    """Folder name."""
+    category: str
+    """`nominal`, `collision` or `fault`."""
+    split: str
+    """`train`, `val` or `test`."""
+    seed: int
+    """Seed of scenario and audio."""
+    unit_id: int
+    """Robot unit."""
+    snr_db: float
+    """Mix SNR, dB."""
+    duration_s: float
+    """Length, s."""
+    environment: str | None
+    """`indoor`, `outdoor` or None (drawn by the scenario sampler)."""
+    obstacle_kind: str | None
+    """Obstacle for a collision episode."""
+    fault_kind: str | None
+    """Fault for a fault episode."""
+    wheel: int | None
+    """Faulty wheel for a fault episode."""
+    severity: tuple[float, float]
+    """Fault severity range."""
+    transient_density: float
+    """Benign transient density multiplier."""
+
+
+@dataclass(frozen=True)
+class WindowRow:
+    """One row of `windows.csv`."""
+
+    window_id: int
+    """Index in the table."""
+    episode: str
+    """Episode folder name."""
+    start_s: float
+    """Window start in the episode, s."""
+    split: str
+    """`train`, `val` or `test`."""
+    label: int
+    """Index into `sim.vocab.LABELS`."""
+    kind: str
+    """`normal`, `collision` or `mechanical`."""
+    sub_kind: str
+    """`none`, an obstacle kind or a fault kind."""
+    wheel: int
+    """Faulty wheel of a mechanical window, -1 otherwise."""
+    unit: int
+    """Robot unit."""
+
+
+def _episode_seed(dataset_seed: int, index: int) -> int:
+    return int(np.random.SeedSequence([dataset_seed, index]).generate_state(1, dtype=np.uint32)[0])
+
+
+def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
+    """Every episode of a dataset, deterministically from the preset and seed."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 7919]))
+    specs: list[EpisodeSpec] = []
+
+    def add(category: str, split: str, units: tuple[int, ...], duration: float, **kw: object) -> None:
+        index = len(specs)
+        count = sum(1 for s in specs if s.category == category and s.split == split)
+        specs.append(
+            EpisodeSpec(
+                episode_id=f"{split}-{category}-{count:03d}",
+                category=category,
+                split=split,
+                seed=_episode_seed(seed, index),
+                unit_id=int(units[index % len(units)]),
+                snr_db=float(rng.choice(preset.snr_db)),
+                duration_s=duration,
+                environment=kw.get("environment"),  # type: ignore[arg-type]
+                obstacle_kind=kw.get("obstacle_kind"),  # type: ignore[arg-type]
+                fault_kind=kw.get("fault_kind"),  # type: ignore[arg-type]
+                wheel=kw.get("wheel"),  # type: ignore[arg-type]
+                severity=preset.severity,
+                transient_density=preset.transient_density,
+            )
+        )
+
+    environments = ("indoor", "outdoor")
+    for i in range(preset.nominal_train):
+        split = "val" if i >= preset.nominal_train - preset.nominal_val else "train"
+        add("nominal", split, preset.train_units, preset.nominal_duration_s, environment=environments[i % 2])
+    for i in range(preset.nominal_test):
+        add("nominal", "test", preset.test_units, preset.nominal_duration_s, environment=environments[i % 2])
+    for kind in preset.obstacle_kinds:
+        for _ in range(preset.collisions_per_kind):
+            add("collision", "test", preset.test_units, preset.collision_duration_s, obstacle_kind=kind)
+    for fault in preset.fault_kinds:
+        for wheel in preset.wheels:
+            for _ in range(preset.faults_per_kind_wheel):
+                add(
+                    "fault", "test", preset.test_units, preset.fault_duration_s, fault_kind=fault, wheel=wheel
+                )
+    return specs
+
+
+def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
+    """Simulate, render and write one episode folder (runs in a worker process)."""
+    scenario = sim.random_scenario(
+        spec.seed,
+        spec.category,
+        duration=spec.duration_s,
+        environment=spec.environment,
+        obstacle_kind=spec.obstacle_kind,
+        fault_kind=spec.fault_kind,
+        wheel=spec.wheel,
+        severity=spec.severity,
+        unit_id=spec.unit_id,
+        transient_density=spec.transient_density,
+    )
+    trace = sim.simulate(scenario)
+    audio = synth_audio.render(trace, synth_audio.AudioConfig(snr_db=spec.snr_db), seed=spec.seed)
+    meta = EpisodeMeta(
+        episode_id=spec.episode_id,
+        category=spec.category,
+        split=spec.split,
+        unit_id=spec.unit_id,
+        seed=spec.seed,
+        snr_db=spec.snr_db,
+        duration_s=spec.duration_s,
+    )
+    return write_episode(directory / spec.episode_id, meta, scenario.to_dict(), trace, audio)
+
+
+def label_windows(
+    label: np.ndarray, sub_kind: np.ndarray, wheel: np.ndarray, starts_s: np.ndarray
+) -> list[tuple[int, str, int] | None]:
+    """Label each 2 s window from per-IMU-sample labels: (label, sub-kind, wheel), or None if ambiguous.
+
+    A window touching any collision sample is a collision; one with the fault active for at least
+    `MECHANICAL_MIN_FRACTION` of it is mechanical; one with every sample normal is normal; anything else
+    (a fault barely started or ended) is ambiguous and left out.
+    """
+    out: list[tuple[int, str, int] | None] = []
+    for start in starts_s:
+        i0 = round(float(start) * IMU_RATE)
+        lab, sub, whl = label[i0 : i0 + IMU_LEN], sub_kind[i0 : i0 + IMU_LEN], wheel[i0 : i0 + IMU_LEN]
+        coll = lab == COLLISION
+        mech = lab == MECHANICAL
+        if coll.any():
+            out.append((COLLISION, SUB_KINDS[int(np.bincount(sub[coll]).argmax())], -1))
+        elif mech.mean() >= MECHANICAL_MIN_FRACTION:
+            out.append(
+                (MECHANICAL, SUB_KINDS[int(np.bincount(sub[mech]).argmax())], int(np.median(whl[mech])))
+            )
+        elif (lab == NORMAL).all():
+            out.append((NORMAL, "none", -1))
+        else:
+            out.append(None)
+    return out
+
+
+def window_starts(duration_s: float, hop_s: float) -> np.ndarray:
+    """Start times of every whole 2 s window at the given hop."""
+    n = int(np.floor((duration_s - WINDOW_S) / hop_s + 1e-9)) + 1
+    return np.arange(max(n, 0)) * hop_s
+
+
+def _window_rows(dataset: Path, preset: Preset, specs: list[EpisodeSpec]) -> list[WindowRow]:
+    rows: list[WindowRow] = []
+    for spec in specs:
+        with np.load(dataset / spec.episode_id / "imu.npz", allow_pickle=False) as imu:
+            label, sub_kind, wheel = imu["label"], imu["sub_kind"], imu["label_wheel"]
+        hop = preset.train_hop_s if spec.split in ("train", "val") else preset.test_hop_s
+        starts = window_starts(len(label) / IMU_RATE, hop)
+        for start, lab in zip(starts, label_windows(label, sub_kind, wheel, starts), strict=True):
+            if lab is None:
+                continue
+            if spec.category == "nominal" and lab[0] != NORMAL:
+                raise DatasetError(
+                    f"{spec.episode_id}: nominal episode has a {LABELS[lab[0]]} window at {start}s"
+                )
+            if spec.category != "nominal" and lab[0] == NORMAL:
+                continue  # anomaly episodes contribute their anomalous windows only
+            label_id, sub_kind_name, wheel_id = lab
+            rows.append(
+                WindowRow(len(rows), spec.episode_id, float(start), spec.split, label_id, LABELS[label_id],
+                          sub_kind_name, wheel_id, spec.unit_id)
+            )  # fmt: skip
+    return rows
+
+
+def sha256_file(path: Path) -> str:
+    """Hex sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def generate(
+    preset_name: str, seed: int, out: Path, workers: int | None = None, progress: bool = True
+) -> Path:
+    """Generate a whole dataset into `out` (which must not exist), atomically.
+
+    Args:
+        preset_name: a preset from `benchmarks.presets`.
+        seed: dataset seed; the same preset and seed give the same file checksums.
+        out: target folder.
+        workers: worker processes (default: one per CPU); 1 runs in this process.
+        progress: show a progress bar.
+    """
+    preset = get_preset(preset_name)
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"dataset folder exists already: {out} (remove it or choose another --out)")
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
+    specs = plan_episodes(preset, seed)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        for _ in _build_all(specs, tmp, workers or os.cpu_count() or 1, progress):
+            pass
+        rows = _window_rows(tmp, preset, specs)
+        _write_windows_csv(tmp / "windows.csv", rows)
+        manifest = {
+            "format_version": DATASET_FORMAT_VERSION,
+            "preset": asdict(preset),
+            "seed": seed,
+            "software": software_versions(),
+            "windows": {
+                "file": "windows.csv",
+                "sha256": sha256_file(tmp / "windows.csv"),
+                "count": len(rows),
+            },
+            "episodes": [
+                {
+                    **asdict(spec),
+                    "files": {name: sha256_file(tmp / spec.episode_id / name) for name in EPISODE_FILES},
+                }
+                for spec in specs
+            ],
+        }
+        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def _build_all(specs: list[EpisodeSpec], directory: Path, workers: int, progress: bool) -> Iterator[Path]:
+    bar = tqdm(total=len(specs), desc="episodes", unit="ep", disable=not progress)
+    try:
+        if workers == 1:
+            for spec in specs:
+                yield build_episode(spec, directory)
+                bar.update()
+            return
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            futures: list[Future[Path]] = [pool.submit(build_episode, spec, directory) for spec in specs]
+            try:
+                for future in as_completed(futures):
+                    yield future.result()
+                    bar.update()
+            except BaseException:
+                for future in futures:
+                    future.cancel()
+                raise
+    finally:
+        bar.close()
+
+
+def _write_windows_csv(path: Path, rows: list[WindowRow]) -> None:
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(WINDOW_COLUMNS)
+        for row in rows:
+            writer.writerow([getattr(row, c) for c in WINDOW_COLUMNS])
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A generated dataset read back (and verified) from disk."""
+
+    path: Path
+    """Dataset folder."""
+    manifest: dict[str, Any]
+    """The manifest."""
+    windows: list[WindowRow]
+    """The window table."""
+
+    @property
+    def preset(self) -> Preset:
+        """The preset the dataset was generated with."""
+        fields: dict[str, Any] = {
+            k: tuple(v) if isinstance(v, list) else v for k, v in self.manifest["preset"].items()
+        }
+        return Preset(**fields)
+
+    def rows(self, split: str) -> list[WindowRow]:
+        """Window rows of one split."""
+        return [r for r in self.windows if r.split == split]
+
+    def load_windows(self, split: str) -> tuple[Windows, list[WindowRow]]:
+        """Decimated, cut windows of one split, in window-table order."""
+        return load_window_rows(self.path, self.rows(split))
+
+
+def load_window_rows(dataset: Path, rows: list[WindowRow]) -> tuple[Windows, list[WindowRow]]:
+    """Read the episodes behind `rows`, decimate their audio and cut the windows (table order kept)."""
+    if not rows:
+        raise DatasetError(f"{dataset}: no windows to load")
+    by_episode: dict[str, list[int]] = {}
+    for i, row in enumerate(rows):
+        by_episode.setdefault(row.episode, []).append(i)
+    audio_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
+    imu_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
+    imu6_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
+    for episode_id, indices in by_episode.items():
+        episode = read_episode(dataset / episode_id)
+        audio4410 = preprocess.decimate_audio(episode.audio)
+        starts = np.array([rows[i].start_s for i in indices])
+        windows = preprocess.frame_windows(audio4410, episode.imu_vel_z, starts, imu6=episode.imu6)
+        for j, i in enumerate(indices):
+            audio_parts[i] = windows.audio[j]
+            imu_parts[i] = windows.imu[j]
+            assert windows.imu6 is not None
+            imu6_parts[i] = windows.imu6[j]
+    return (
+        Windows(audio=np.stack(audio_parts), imu=np.stack(imu_parts), imu6=np.stack(imu6_parts)),
+        rows,
+    )
+
+
+def open_dataset(path: Path, verify: bool = True) -> Dataset:
+    """Open a dataset folder, checking its format version and (by default) every file's sha256."""
+    path = Path(path)
+    manifest_path = path / "manifest.json"
+    if not manifest_path.is_file():
+        raise FileNotFoundError(f"not a dataset (no manifest.json): {path}")
+    manifest = json.loads(manifest_path.read_text())
+    version = manifest.get("format_version")
+    if version != DATASET_FORMAT_VERSION:
+        raise DatasetError(
+            f"{manifest_path}: dataset format_version {version}, this software reads {DATASET_FORMAT_VERSION}"
+        )
+    if verify:
+        verify_dataset(path, manifest)
+    windows_path = path / "windows.csv"
+    if not windows_path.is_file():
+        raise DatasetError(f"{path}: missing window table windows.csv")
+    with open(windows_path, newline="") as handle:
+        reader = csv.DictReader(handle)
+        rows = [
+            WindowRow(int(r["window_id"]), r["episode"], float(r["start_s"]), r["split"], int(r["label"]),
+                      r["kind"], r["sub_kind"], int(r["wheel"]), int(r["unit"]))
+            for r in reader
+        ]  # fmt: skip
+    return Dataset(path=path, manifest=manifest, windows=rows)
+
+
+def verify_dataset(path: Path, manifest: dict[str, Any]) -> None:
+    """Check that every file the manifest lists exists and has its recorded sha256."""
+    expected: list[tuple[Path, str]] = [(path / "windows.csv", manifest["windows"]["sha256"])]
+    for episode in manifest["episodes"]:
+        for name, digest in episode["files"].items():
+            expected.append((path / episode["episode_id"] / name, digest))
+    for file, digest in expected:
+        if not file.is_file():
+            raise DatasetError(f"missing dataset file: {file}")
+        if sha256_file(file) != digest:
+            raise DatasetError(f"checksum mismatch: {file} (sha256 differs from manifest.json)")

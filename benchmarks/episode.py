@@ -1,0 +1,233 @@
+"""One episode on disk: a folder with `audio.flac`, `imu.npz`, `trace.npz`, `events.json`, `meta.json`.
+
+`write_episode` writes the five files into a folder that must not exist yet (through a temporary folder
+renamed into place); `read_episode` reads them back and checks the format version. The files are
+deterministic: the same trace and audio give the same bytes, so the manifest's sha256 are reproducible.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import synth_audio
+from sim.trace import Trace
+from sim.vocab import LABELS, SUB_KINDS
+
+EPISODE_FORMAT_VERSION = 1
+"""Version of the episode folder layout; bumped on any change of file names or fields."""
+
+EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "trace.npz", "events.json", "meta.json")
+"""The files of one episode folder."""
+
+
+class EpisodeError(ValueError):
+    """An episode folder is missing a file, has another format version or is inconsistent."""
+
+
+@dataclass(frozen=True)
+class EpisodeMeta:
+    """What `meta.json` holds besides the scenario."""
+
+    episode_id: str
+    """Folder name, unique in the dataset (e.g. `train-nominal-003`)."""
+    category: str
+    """`nominal`, `collision` or `fault`."""
+    split: str
+    """`train`, `val` or `test`."""
+    unit_id: int
+    """Robot unit the episode was driven with."""
+    seed: int
+    """Seed of the scenario and the audio rendering."""
+    snr_db: float
+    """Robot-to-environment SNR the audio was mixed at, dB."""
+    duration_s: float
+    """Length, s."""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """An episode read back from disk."""
+
+    path: Path
+    """The episode folder."""
+    meta: EpisodeMeta
+    """Identity and split."""
+    scenario: dict[str, Any]
+    """The scenario as written by `sim.Scenario.to_dict()`."""
+    audio: np.ndarray
+    """(n, 2) float32 binaural audio."""
+    audio_rate: int
+    """Audio sample rate, Hz."""
+    imu_time: np.ndarray
+    """(m,) IMU time stamps, s."""
+    imu_vel_z: np.ndarray
+    """(m,) IMU z-axis velocity, m/s."""
+    imu6: np.ndarray
+    """(m, 6) accelerometer xyz, gyro xyz."""
+    label: np.ndarray
+    """(m,) label index per IMU sample (`sim.vocab.LABELS`)."""
+    sub_kind: np.ndarray
+    """(m,) sub-kind index per IMU sample (`sim.vocab.SUB_KINDS`)."""
+    label_wheel: np.ndarray
+    """(m,) wheel index of a mechanical label, -1 otherwise."""
+
+    def trace(self) -> Trace:
+        """The full simulator trace (read on demand: it is the largest file)."""
+        return Trace.load(self.path / "trace.npz")
+
+    def events(self) -> dict[str, Any]:
+        """The human-readable events (contacts, transients, faults)."""
+        return dict(json.loads((self.path / "events.json").read_text()))
+
+
+def software_versions() -> dict[str, str]:
+    """Versions of the packages that shape the data, for `meta.json` and `manifest.json`."""
+    import importlib.metadata as md
+
+    names = ("msvdd-bench", "mujoco", "dm-control", "numpy", "scipy", "soundfile", "torch")
+    out: dict[str, str] = {}
+    for name in names:
+        try:
+            out[name] = md.version(name)
+        except md.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def events_dict(trace: Trace) -> dict[str, Any]:
+    """Contacts, transients and faults of a trace as JSON-able lists."""
+    c, t = trace.contacts, trace.transients
+    return {
+        "contacts": [
+            {
+                "time": float(c.time[i]),
+                "position": [float(v) for v in c.position[i]],
+                "normal": [float(v) for v in c.normal[i]],
+                "impulse": float(c.impulse[i]),
+                "normal_speed": float(c.normal_speed[i]),
+                "duration": float(c.duration[i]),
+                "obstacle_kind": c.obstacle_kind[i],
+                "material": c.material[i],
+            }
+            for i in range(len(c.time))
+        ],
+        "transients": [
+            {
+                "time": float(t.time[i]),
+                "position": [float(v) for v in t.position[i]],
+                "wheel": int(t.wheel[i]),
+                "impulse": float(t.impulse[i]),
+                "kind": t.kind[i],
+            }
+            for i in range(len(t.time))
+        ],
+        "faults": [
+            {
+                "kind": f.kind,
+                "wheel": f.wheel,
+                "wheel_name": trace.robot.wheel_names[f.wheel],
+                "severity": f.severity,
+                "onset": f.onset,
+                "duration": f.duration,
+                "defect_order": f.defect_order,
+                "resonance_hz": f.resonance_hz,
+            }
+            for f in trace.faults
+        ],
+    }
+
+
+def write_episode(
+    directory: Path,
+    meta: EpisodeMeta,
+    scenario: dict[str, Any],
+    trace: Trace,
+    audio: synth_audio.Audio,
+) -> Path:
+    """Write one episode folder (atomically: a temporary sibling renamed into place).
+
+    Raises:
+        FileExistsError: if `directory` exists already.
+    """
+    directory = Path(directory)
+    if directory.exists():
+        raise FileExistsError(f"episode folder exists already: {directory}")
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}-", dir=directory.parent))
+    try:
+        synth_audio.write(tmp / "audio.flac", audio)
+        imu6 = np.concatenate([trace.imu_acc, trace.imu_gyro], axis=1).astype(np.float32)
+        with open(tmp / "imu.npz", "wb") as handle:
+            np.savez_compressed(
+                handle,
+                time=trace.imu_time,
+                vel_z=trace.imu_vel_z.astype(np.float32),
+                imu6=imu6,
+                label=trace.label.astype(np.int8),
+                sub_kind=trace.sub_kind.astype(np.int16),
+                label_wheel=trace.label_wheel.astype(np.int8),
+            )
+        trace.save(tmp / "trace.npz")
+        _write_json(tmp / "events.json", events_dict(trace))
+        _write_json(
+            tmp / "meta.json",
+            {
+                "format_version": EPISODE_FORMAT_VERSION,
+                "episode": meta.__dict__,
+                "audio_rate": audio.sample_rate,
+                "labels": list(LABELS),
+                "sub_kinds": list(SUB_KINDS),
+                "scenario": scenario,
+                "software": software_versions(),
+            },
+        )
+        os.replace(tmp, directory)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return directory
+
+
+def read_episode(directory: Path) -> Episode:
+    """Read an episode folder; raises EpisodeError naming the missing file or bad version."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise FileNotFoundError(f"episode folder not found: {directory}")
+    for name in EPISODE_FILES:
+        if not (directory / name).is_file():
+            raise EpisodeError(f"{directory}: missing episode file {name}")
+    meta_doc = json.loads((directory / "meta.json").read_text())
+    version = meta_doc.get("format_version")
+    if version != EPISODE_FORMAT_VERSION:
+        raise EpisodeError(
+            f"{directory / 'meta.json'}: episode format_version {version}, "
+            f"this software reads {EPISODE_FORMAT_VERSION}"
+        )
+    audio = synth_audio.read(directory / "audio.flac")
+    with np.load(directory / "imu.npz", allow_pickle=False) as imu:
+        arrays = {key: imu[key] for key in imu.files}
+    return Episode(
+        path=directory,
+        meta=EpisodeMeta(**meta_doc["episode"]),
+        scenario=meta_doc["scenario"],
+        audio=audio.samples,
+        audio_rate=audio.sample_rate,
+        imu_time=arrays["time"],
+        imu_vel_z=arrays["vel_z"],
+        imu6=arrays["imu6"],
+        label=arrays["label"],
+        sub_kind=arrays["sub_kind"],
+        label_wheel=arrays["label_wheel"],
+    )
+
+
+def _write_json(path: Path, doc: Any) -> None:
+    path.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")

@@ -1,0 +1,179 @@
+"""Dataset presets: how much nominal, collision and fault driving to simulate, and how hard it is."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from sim.vocab import FAULT_KINDS, OBSTACLE_KINDS
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A dataset recipe and the training budget that goes with it."""
+
+    name: str
+    """Preset name (`tiny`, `quick`, `paper`, `hard`)."""
+    description: str
+    """One line for `msvdd-bench scenarios` and reports."""
+    nominal_train: int
+    """Nominal sequences used for training."""
+    nominal_val: int
+    """Of the training sequences, how many are held out as nominal validation (model selection only)."""
+    nominal_test: int
+    """Nominal sequences used for testing."""
+    nominal_duration_s: float
+    """Length of each nominal sequence, s."""
+    collisions_per_kind: int
+    """Collision episodes per obstacle kind (test only)."""
+    collision_duration_s: float
+    """Length of each collision episode, s."""
+    faults_per_kind_wheel: int
+    """Fault episodes per (fault kind, wheel) pair (test only)."""
+    fault_duration_s: float
+    """Length of each fault episode, s."""
+    severity: tuple[float, float]
+    """Range fault severities are drawn from, 0..1."""
+    snr_db: tuple[float, ...]
+    """Robot-to-environment SNRs the episodes are mixed at, dB (drawn per episode)."""
+    transient_density: float
+    """Benign transients per metre relative to the default (1.0)."""
+    train_units: tuple[int, ...]
+    """Robot units driven in training sequences."""
+    test_units: tuple[int, ...]
+    """Robot units driven in test episodes (units outside `train_units` are unseen)."""
+    train_hop_s: float
+    """Hop between training windows, s (windows are 2 s)."""
+    test_hop_s: float
+    """Hop between test windows, s."""
+    method_scale: str
+    """Training budget passed to every method (`tiny`, `quick`, `paper`)."""
+    seeds: tuple[int, ...]
+    """Training seeds per method; metrics are reported as mean and std over them."""
+    methods: tuple[str, ...] = field(default=())
+    """Methods `msvdd-bench run` trains by default (empty = every registered method)."""
+    fault_kinds: tuple[str, ...] = FAULT_KINDS
+    """Fault kinds generated."""
+    obstacle_kinds: tuple[str, ...] = OBSTACLE_KINDS
+    """Obstacle kinds generated."""
+    wheels: tuple[int, ...] = (0, 1, 2, 3)
+    """Wheels faults are injected on."""
+
+
+QUICK_METHODS: tuple[str, ...] = (
+    "msvdd",
+    "msvdd-euclidean",
+    "dae",
+    "iforest-early",
+    "ocsvm-early",
+    "svdd-early",
+    "audio-rms",
+    "imu-kurtosis",
+)
+
+_PRESETS: dict[str, Preset] = {
+    "tiny": Preset(
+        name="tiny",
+        description="seconds: a handful of short episodes, for tests",
+        nominal_train=3,
+        nominal_val=1,
+        nominal_test=1,
+        nominal_duration_s=14.0,
+        collisions_per_kind=1,
+        collision_duration_s=10.0,
+        faults_per_kind_wheel=1,
+        fault_duration_s=10.0,
+        severity=(0.6, 1.0),
+        snr_db=(6.0,),
+        transient_density=1.0,
+        train_units=(0, 1),
+        test_units=(0, 1),
+        train_hop_s=1.0,
+        test_hop_s=2.0,
+        method_scale="tiny",
+        seeds=(0,),
+        methods=("msvdd", "iforest-early", "audio-rms"),
+        obstacle_kinds=("wall", "box"),
+        fault_kinds=("imbalance", "bearing"),
+        wheels=(0,),
+    ),
+    "quick": Preset(
+        name="quick",
+        description="the default: a few minutes on 2 cores (what `make demo` runs)",
+        nominal_train=6,
+        nominal_val=1,
+        nominal_test=2,
+        nominal_duration_s=90.0,
+        collisions_per_kind=2,
+        collision_duration_s=14.0,
+        faults_per_kind_wheel=1,
+        fault_duration_s=16.0,
+        severity=(0.4, 1.0),
+        snr_db=(6.0, 0.0),
+        transient_density=1.0,
+        train_units=(0, 1, 2),
+        test_units=(0, 1, 2),
+        train_hop_s=1.0,
+        test_hop_s=2.0,
+        method_scale="quick",
+        seeds=(0,),
+        methods=QUICK_METHODS,
+        wheels=(0, 3),
+    ),
+    "paper": Preset(
+        name="paper",
+        description="the paper's size: ~2 h nominal in 21 sequences (15 train, 6 test), ~280 collision "
+        "and ~510 fault windows",
+        nominal_train=15,
+        nominal_val=2,
+        nominal_test=6,
+        nominal_duration_s=343.0,
+        collisions_per_kind=18,
+        collision_duration_s=16.0,
+        faults_per_kind_wheel=2,
+        fault_duration_s=30.0,
+        severity=(0.3, 1.0),
+        snr_db=(6.0, 0.0),
+        transient_density=1.0,
+        train_units=(0, 1, 2, 3),
+        test_units=(0, 1, 2, 3),
+        train_hop_s=1.0,
+        test_hop_s=2.0,
+        method_scale="paper",
+        seeds=(0, 1, 2),
+    ),
+    "hard": Preset(
+        name="hard",
+        description="low-severity faults, -6 dB SNR, twice the benign transients, "
+        "robot units unseen in training",
+        nominal_train=15,
+        nominal_val=2,
+        nominal_test=6,
+        nominal_duration_s=343.0,
+        collisions_per_kind=18,
+        collision_duration_s=16.0,
+        faults_per_kind_wheel=2,
+        fault_duration_s=30.0,
+        severity=(0.05, 0.35),
+        snr_db=(-6.0,),
+        transient_density=2.0,
+        train_units=(0, 1, 2),
+        test_units=(3, 4),
+        train_hop_s=1.0,
+        test_hop_s=2.0,
+        method_scale="paper",
+        seeds=(0, 1, 2),
+    ),
+}
+
+
+def preset_names() -> list[str]:
+    """Names of every preset."""
+    return list(_PRESETS)
+
+
+def get_preset(name: str) -> Preset:
+    """The preset called `name`; ValueError naming the allowed presets otherwise."""
+    try:
+        return _PRESETS[name]
+    except KeyError:
+        raise ValueError(f"unknown preset {name!r}; allowed: {', '.join(_PRESETS)}") from None

@@ -1,0 +1,104 @@
+"""`msvdd-bench run`: generate (or reuse) a dataset, train every method, evaluate, report, in one go."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks import methods
+from benchmarks.dataset import generate, open_dataset
+from benchmarks.methods.base import check_scale
+from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
+from benchmarks.presets import get_preset
+from benchmarks.report import RunInfo, write_report
+
+
+def run_benchmark(
+    out: Path,
+    *,
+    preset_name: str,
+    seed: int,
+    method_names: list[str] | None,
+    data: Path | None,
+    workers: int | None,
+    scale: str | None,
+    seeds: list[int] | None,
+    command: str,
+    progress: bool = True,
+) -> Path:
+    """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
+
+    Everything is written into a temporary folder beside `out` and renamed into place at the end, so an
+    interrupted run leaves no folder that looks complete. Returns `out`.
+    """
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
+    preset = get_preset(preset_name)
+    names = method_names or list(preset.methods) or methods.names()
+    for name in names:
+        methods.spec(name)
+    chosen_scale = check_scale(scale or preset.method_scale)
+    train_seeds = seeds if seeds else list(preset.seeds)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        if data is None:
+            data_path = generate(preset_name, seed, tmp / "dataset", workers=workers, progress=progress)
+        else:
+            data_path = Path(data)
+        dataset = open_dataset(data_path)
+        train, _ = dataset.load_windows("train")
+        val = dataset.load_windows("val")[0] if dataset.rows("val") else None
+        test = test_windows(dataset)
+        models: list[TrainedModel] = []
+        for name in names:
+            for s in train_seeds:
+                if progress:
+                    print(
+                        f"training {name} (seed {s}, scale {chosen_scale}) on {len(train)} windows",
+                        flush=True,
+                    )
+                models.append(train_method(dataset, name, s, chosen_scale, tmp / "models" / f"{name}-seed{s}",
+                                           train=train, val=val))  # fmt: skip
+        scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
+        fit_time: dict[str, list[float]] = {}
+        for m in models:
+            fit_time.setdefault(m.method, []).append(m.train_seconds)
+        info = RunInfo(
+            preset=preset_name,
+            dataset_seed=seed,
+            dataset=str(data_path if data is not None else out / "dataset"),
+            command=command,
+            machine=machine_description(),
+            date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
+            train_seconds={k: float(np.mean(v)) for k, v in fit_time.items()},
+        )
+        write_report(tmp, info, rows, scores, per_method)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def machine_description() -> str:
+    """CPU model, core count and accelerator, for reports."""
+    import torch
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "no GPU"
+    return f"{cpu}, {os.cpu_count()} cores, {gpu}"

@@ -1,5 +1,33 @@
 """Mahalanobis SVDD with audio-IMU fusion (the paper's method), and the detector contract."""
 
+from msvdd.config import MSVDDConfig
 from msvdd.contract import Detector, WindowError, Windows
+from msvdd.mcd import MCDError, MCDResult, SingularCovarianceError, mahalanobis, min_cov_det
+from msvdd.network import AudioDecoder, AudioEncoder, Fusion, FusionNet, ImuDecoder, ImuEncoder, NetOutput
+from msvdd.preprocess import Normalizer, decimate_audio, frame_windows
+from msvdd.training import TrainResult, prepare_tensors, train_network
 
-__all__ = ["Detector", "WindowError", "Windows"]
+__all__ = [
+    "AudioDecoder",
+    "AudioEncoder",
+    "Detector",
+    "Fusion",
+    "FusionNet",
+    "ImuDecoder",
+    "ImuEncoder",
+    "MCDError",
+    "MCDResult",
+    "MSVDDConfig",
+    "NetOutput",
+    "Normalizer",
+    "SingularCovarianceError",
+    "TrainResult",
+    "WindowError",
+    "Windows",
+    "decimate_audio",
+    "frame_windows",
+    "mahalanobis",
+    "min_cov_det",
+    "prepare_tensors",
+    "train_network",
+]

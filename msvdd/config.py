@@ -1,0 +1,136 @@
+"""`MSVDDConfig`: every hyper-parameter of the detector, with the paper's values as defaults."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Self
+
+from msvdd.mcd import MCDError, support_size
+from msvdd.network import FUSIONS
+
+DEVICES = ("cpu", "cuda", "auto")
+"""Allowed `device` values ("auto" = CUDA when available, else CPU)."""
+
+
+@dataclass(frozen=True)
+class MSVDDConfig:
+    """M-SVDD hyper-parameters (paper, Implementation details) and ablation switches."""
+
+    d: int = 32
+    """Token / per-modality feature dimension."""
+    s: int = 32
+    """Dimension of the fused latent space where the ellipsoid lives."""
+    fusion: str = "cross_attention"
+    """Fusion: "cross_attention" (paper), or the ablation's "concat", "sum", "product"."""
+    use_audio: bool = True
+    """Use the audio modality (False = IMU-only ablation)."""
+    use_imu: bool = True
+    """Use the IMU modality (False = audio-only ablation)."""
+    use_reconstruction: bool = True
+    """Train and score with the reconstruction branch (False = "w/o reconstruction" ablation)."""
+    use_mahalanobis: bool = True
+    """Mahalanobis SVDD with MCD (False = Euclidean Deep SVDD with the same network)."""
+    alpha: tuple[float, float, float] = (1.0, 1.0, 0.001)
+    """Loss weights of the SVDD, reconstruction and covariance-regulariser terms."""
+    eps: float = 1e-3
+    """Ridge eps*I added to Sigma, and eps in the regulariser's denominators."""
+    nu: float = 1.0
+    """Soft-boundary nu: loss R^2 + 1/(nu N) sum max(0, D^2 - R^2); 1 = the paper's mean."""
+    w: float = 0.01
+    """Weight of the scaled reconstruction loss in the anomaly score."""
+    batch_size: int = 64
+    """Training batch size (and MCD batch)."""
+    lr: float = 1e-4
+    """Adam initial learning rate."""
+    cosine_decay: bool = True
+    """Cosine-decay the learning rate to 0 over the training steps."""
+    epochs: int = 40
+    """Training epochs."""
+    mcd_support_fraction: float | None = None
+    """MCD support h/n; None = ceil((n + s + 1) / 2) (must give h < n for a batch)."""
+    mcd_trials: int = 30
+    """FastMCD random starts."""
+    quantile: float = 0.95
+    """Threshold = this quantile of the training scores."""
+    val_fraction: float = 0.1
+    """Fraction of the training windows held out for model selection when no val set is given."""
+    smooth_window: int = 5
+    """Savitzky-Golay smoothing window (samples, odd; 0 = off), applied per window after z-scoring."""
+    smooth_polyorder: int = 2
+    """Savitzky-Golay polynomial order."""
+    seed: int = 0
+    """Seed of every random draw (initialisation, shuffling, splits, MCD starts)."""
+    device: str = "cpu"
+    """Torch device: "cpu", "cuda" or "auto"."""
+    progress: bool = True
+    """Show a progress bar while training."""
+
+    def __post_init__(self) -> None:
+        _check(self.d >= 1, "d", self.d, ">= 1")
+        _check(self.s >= 1, "s", self.s, ">= 1")
+        _check(self.fusion in FUSIONS, "fusion", self.fusion, " | ".join(FUSIONS))
+        _check(self.use_audio or self.use_imu, "use_audio/use_imu", False, "at least one modality True")
+        _check(len(self.alpha) == 3 and all(a >= 0 for a in self.alpha), "alpha", self.alpha, "3 values >= 0")
+        _check(self.eps > 0, "eps", self.eps, "> 0")
+        _check(0 < self.nu <= 1, "nu", self.nu, "0 < nu <= 1")
+        _check(self.w >= 0, "w", self.w, ">= 0")
+        _check(self.batch_size >= 2, "batch_size", self.batch_size, ">= 2")
+        _check(self.lr > 0, "lr", self.lr, "> 0")
+        _check(self.epochs >= 1, "epochs", self.epochs, ">= 1")
+        _check(self.mcd_trials >= 1, "mcd_trials", self.mcd_trials, ">= 1")
+        _check(0 < self.quantile < 1, "quantile", self.quantile, "0 < quantile < 1")
+        _check(0 <= self.val_fraction < 1, "val_fraction", self.val_fraction, "0 <= val_fraction < 1")
+        _check(
+            self.smooth_window == 0
+            or (self.smooth_window % 2 == 1 and self.smooth_window > self.smooth_polyorder),
+            "smooth_window",
+            self.smooth_window,
+            "0 (off) or odd and > smooth_polyorder",
+        )
+        _check(self.smooth_polyorder >= 0, "smooth_polyorder", self.smooth_polyorder, ">= 0")
+        _check(self.device in DEVICES, "device", self.device, " | ".join(DEVICES))
+        if self.use_mahalanobis:
+            try:
+                support_size(self.batch_size, self.s, self.mcd_support_fraction)
+            except MCDError as err:
+                raise ValueError(f"batch_size {self.batch_size} with s={self.s}: {err}") from err
+
+    @classmethod
+    def paper(cls, **overrides: Any) -> Self:
+        """The paper's setting: d = s = 32, batch 64, 40 epochs, lr 1e-4 cosine, alpha (1, 1, 0.001)."""
+        return cls(**overrides)
+
+    @classmethod
+    def quick(cls, **overrides: Any) -> Self:
+        """The paper's network with 8 epochs: a few minutes on 2 CPU cores for ~1000 windows."""
+        return dataclasses.replace(cls(epochs=8, lr=1e-3), **overrides)
+
+    @classmethod
+    def tiny(cls, **overrides: Any) -> Self:
+        """A small, fast setting for tests and smoke runs (seconds on a CPU core for ~100 windows)."""
+        base = cls(d=8, s=8, batch_size=32, epochs=3, lr=3e-3, mcd_trials=10, progress=False)
+        return dataclasses.replace(base, **overrides)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of the fields (alpha as a list), for saving."""
+        out = dataclasses.asdict(self)
+        out["alpha"] = list(self.alpha)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Self:
+        """Inverse of `to_dict`; unknown keys are an error naming them."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ValueError(f"unknown MSVDDConfig fields: {', '.join(unknown)}")
+        values = dict(data)
+        if "alpha" in values:
+            values["alpha"] = tuple(float(a) for a in values["alpha"])
+        return cls(**values)
+
+
+def _check(ok: bool, field: str, value: object, allowed: str) -> None:
+    if not ok:
+        raise ValueError(f"MSVDDConfig.{field} = {value!r}; allowed: {allowed}")

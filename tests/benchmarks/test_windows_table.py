@@ -1,0 +1,75 @@
+"""Window labelling and episode planning: hand cases with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks.dataset import label_windows, plan_episodes, window_starts
+from benchmarks.presets import get_preset, preset_names
+from sim.vocab import COLLISION, MECHANICAL, NORMAL, sub_kind_index
+
+RATE = 200
+
+
+def _timeline(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = int(seconds * RATE)
+    return np.zeros(n, np.int8), np.zeros(n, np.int16), -np.ones(n, np.int8)
+
+
+def test_window_starts_cover_whole_windows_only() -> None:
+    np.testing.assert_allclose(window_starts(10.0, 2.0), [0, 2, 4, 6, 8])
+    np.testing.assert_allclose(window_starts(5.5, 1.0), [0, 1, 2, 3])
+    assert window_starts(1.5, 1.0).size == 0
+
+
+def test_collision_sample_makes_a_collision_window() -> None:
+    label, sub, wheel = _timeline(8.0)
+    label[int(3.1 * RATE) : int(3.2 * RATE)] = COLLISION
+    sub[int(3.1 * RATE) : int(3.2 * RATE)] = sub_kind_index("door")
+    out = label_windows(label, sub, wheel, np.array([0.0, 2.0, 4.0, 6.0]))
+    assert out == [(NORMAL, "none", -1), (COLLISION, "door", -1), (NORMAL, "none", -1), (NORMAL, "none", -1)]
+
+
+def test_mechanical_needs_half_the_window_and_partial_is_ambiguous() -> None:
+    label, sub, wheel = _timeline(8.0)
+    onset = int(3.5 * RATE)  # fault active from 3.5 s on
+    label[onset:] = MECHANICAL
+    sub[onset:] = sub_kind_index("bearing")
+    wheel[onset:] = 2
+    out = label_windows(label, sub, wheel, np.array([0.0, 2.0, 3.0, 4.0, 6.0]))
+    # [2, 4): 0.5 s of fault -> ambiguous; [3, 5): 1.5 s -> mechanical; later windows: mechanical.
+    assert out == [(NORMAL, "none", -1), None, (MECHANICAL, "bearing", 2), (MECHANICAL, "bearing", 2),
+                   (MECHANICAL, "bearing", 2)]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", preset_names())
+def test_plans_are_deterministic_and_cover_every_kind(name: str) -> None:
+    preset = get_preset(name)
+    plan = plan_episodes(preset, 3)
+    assert plan == plan_episodes(preset, 3)
+    assert plan != plan_episodes(preset, 4)
+    assert len({s.episode_id for s in plan}) == len(plan)
+    assert {s.obstacle_kind for s in plan if s.category == "collision"} == set(preset.obstacle_kinds)
+    assert {(s.fault_kind, s.wheel) for s in plan if s.category == "fault"} == {
+        (f, w) for f in preset.fault_kinds for w in preset.wheels
+    }
+    train = [s for s in plan if s.split in ("train", "val")]
+    assert all(s.category == "nominal" for s in train)
+    assert sum(s.split == "val" for s in plan) == preset.nominal_val
+    assert {s.unit_id for s in train} <= set(preset.train_units)
+    assert {s.unit_id for s in plan if s.split == "test"} <= set(preset.test_units)
+
+
+def test_paper_preset_has_the_papers_size() -> None:
+    plan = plan_episodes(get_preset("paper"), 0)
+    nominal = [s for s in plan if s.category == "nominal"]
+    assert len(nominal) == 21
+    assert sum(s.split in ("train", "val") for s in nominal) == 15
+    hours = sum(s.duration_s for s in nominal) / 3600
+    assert 1.9 < hours < 2.1
+
+
+def test_unknown_preset_names_the_allowed_ones() -> None:
+    with pytest.raises(ValueError, match="unknown preset 'huge'; allowed: tiny, quick, paper, hard"):
+        get_preset("huge")

@@ -27,7 +27,7 @@ lint: $(STAMP)
 	$(VENV)/bin/mypy
 
 demo: $(STAMP)
-	$(BENCH) demo --out runs/demo
+	$(BENCH) demo --out runs/demo --replace
 
 bench: $(STAMP)
 	$(BENCH) run --preset paper --seed 0 --out runs/paper

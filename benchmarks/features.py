@@ -16,6 +16,9 @@ import numpy as np
 from msvdd.contract import AUDIO_RATE, IMU_RATE, Windows
 
 _EPS = 1e-10
+_LOG_MEL_FLOOR = 1e-6
+"""Added to mel energies before the log (about -60 dB re a full-scale frame), so silent bands do not
+turn float rounding into large log swings."""
 
 
 @dataclass(frozen=True)
@@ -102,7 +105,7 @@ def log_mel(audio: np.ndarray, config: FeatureConfig = FeatureConfig()) -> np.nd
     frames = np.lib.stride_tricks.sliding_window_view(x, config.n_fft, axis=1)[:, :: config.hop]
     spectrum = np.fft.rfft(frames * window, axis=-1)
     power = (spectrum.real**2 + spectrum.imag**2).mean(axis=2)
-    return np.log(power @ bank.T + _EPS)
+    return np.log(power @ bank.T + _LOG_MEL_FLOOR)
 
 
 def audio_features(audio: np.ndarray, config: FeatureConfig = FeatureConfig()) -> np.ndarray:

@@ -1,0 +1,163 @@
+"""Kernel SVDD's QP solution, the shallow and naive baselines, and the registry's save/load errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import kurtosis
+from sklearn.svm import OneClassSVM
+
+from benchmarks import methods
+from benchmarks.methods import naive
+from benchmarks.methods._io import ModelFileError
+from benchmarks.methods.kernel_svdd import KernelSVDD, rbf_kernel, solve_svdd_dual
+from benchmarks.methods.shallow import ShallowConfig, ShallowDetector
+from msvdd.synthetic import toy_windows
+
+
+def _blob(n: int = 60, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((n, 2)) * np.array([1.0, 0.5])
+
+
+def test_svdd_dual_satisfies_kkt() -> None:
+    x = _blob()
+    c = 1.0 / (0.1 * x.shape[0])
+    k = rbf_kernel(x, x, 0.5)
+    sol = solve_svdd_dual(k, c, tol=1e-9)
+    a = sol.alpha
+    assert sol.converged and sol.gap <= 1e-9
+    assert a.sum() == pytest.approx(1.0, abs=1e-12)
+    assert a.min() >= 0.0 and a.max() <= c
+    free = (a > 1e-9) & (a < c - 1e-9)
+    assert free.sum() >= 1
+    # support vectors strictly inside the box lie on the sphere; a = 0 inside; a = C outside
+    np.testing.assert_allclose(sol.dist2[free], sol.r2, atol=1e-8)
+    assert np.all(sol.dist2[a <= 1e-12] <= sol.r2 + 1e-8)
+    assert np.all(sol.dist2[a >= c - 1e-12] >= sol.r2 - 1e-8)
+    # the distances follow the kernel expansion of the centre
+    np.testing.assert_allclose(sol.dist2, 1.0 - 2.0 * k @ a + a @ k @ a, atol=1e-12)
+    # at most a fraction nu of the points outside the sphere, at least nu are support vectors (Tax & Duin)
+    assert np.mean(sol.dist2 > sol.r2 + 1e-8) <= 0.1 + 1e-12
+    assert np.mean(a > 0) >= 0.1 - 1e-12
+
+
+def test_svdd_dual_minimises_the_objective() -> None:
+    x = _blob(30, seed=1)
+    k = rbf_kernel(x, x, 1.0)
+    c = 1.0 / (0.2 * 30)
+    sol = solve_svdd_dual(k, c, tol=1e-10)
+
+    def objective(a: np.ndarray) -> float:
+        return float(a @ k @ a - np.diag(k) @ a)
+
+    rng = np.random.default_rng(0)
+    tried = 0
+    for _ in range(500):  # feasible sum-preserving moves never improve on the solution
+        i, j = rng.choice(30, 2, replace=False)
+        a = sol.alpha.copy()
+        t = rng.uniform(0.0, 0.02)
+        a[i] += t
+        a[j] -= t
+        if a.min() >= 0 and a.max() <= c:
+            tried += 1
+            assert objective(a) >= objective(sol.alpha) - 1e-12
+    assert tried > 50
+
+
+def test_svdd_matches_one_class_svm_for_rbf() -> None:
+    # With K_ii = 1 the SVDD and Schölkopf's one-class SVM duals share their minimiser (scaled by nu n).
+    x = _blob(120, seed=2)
+    nu = 0.1
+    model = KernelSVDD(nu=nu, gamma=0.7).fit(x)
+    assert model.solution_ is not None
+    ocsvm = OneClassSVM(kernel="rbf", nu=nu, gamma=0.7, tol=1e-10).fit(x)
+    ref = np.zeros(len(x))
+    ref[ocsvm.support_] = ocsvm.dual_coef_[0] / (nu * len(x))
+    np.testing.assert_allclose(model.solution_.alpha, ref, atol=1e-5)
+    rng = np.random.default_rng(3)
+    probe = rng.standard_normal((50, 2)) * 2
+    np.testing.assert_allclose(
+        np.corrcoef(model.score(probe), -ocsvm.decision_function(probe))[0, 1], 1.0, atol=1e-8
+    )
+
+
+def test_svdd_refuses_infeasible_box_and_subsamples() -> None:
+    with pytest.raises(ValueError, match="infeasible"):
+        solve_svdd_dual(np.eye(10), 0.05)
+    with pytest.raises(ValueError, match="nu"):
+        KernelSVDD(nu=0.0)
+    model = KernelSVDD(nu=0.2, max_train=40, seed=1).fit(_blob(100))
+    assert (model.n_offered_, model.n_fit_) == (100, 40)
+    again = KernelSVDD(nu=0.2, max_train=40, seed=1).fit(_blob(100))
+    np.testing.assert_array_equal(model.alpha_, again.alpha_)
+
+
+def test_naive_statistics_match_closed_forms() -> None:
+    windows, _ = toy_windows(5, 3, seed=4)
+    audio = windows.audio.astype(np.float64)
+    np.testing.assert_allclose(
+        naive.window_rms(windows.audio), np.sqrt((audio**2).mean(axis=(1, 2))), rtol=1e-12
+    )
+    np.testing.assert_allclose(
+        naive.window_kurtosis(windows.imu), kurtosis(windows.imu.astype(np.float64), axis=1)
+    )
+    assert naive.window_kurtosis(np.ones((1, 400)))[0] == 0.0
+
+
+def test_late_fusion_scores_are_z_normalised_per_modality() -> None:
+    windows, _ = toy_windows(40, 0, seed=5)
+    det = ShallowDetector(ShallowConfig(model="svdd", fusion="late", seed=0)).fit(windows)
+    blocks = det._blocks
+    assert len(blocks) == 2
+    train_scores = det.score(windows)
+    # averaging two training-z-scored series gives mean 0 on the training windows
+    assert train_scores.mean() == pytest.approx(0.0, abs=1e-9)
+    assert det.threshold_ == pytest.approx(np.percentile(train_scores, 95))
+
+
+def test_refit_that_does_not_reproduce_training_scores_is_refused(tmp_path: Path) -> None:
+    windows, _ = toy_windows(30, 0, seed=6)
+    det = methods.make("iforest-early", seed=0, scale="tiny").fit(windows)
+    path = tmp_path / "model.npz"
+    det.save(path)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["b0_train_scores"] = arrays["b0_train_scores"] + 1e-9
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+    with pytest.raises(ModelFileError, match="did not reproduce"):
+        ShallowDetector.load(path)
+
+
+def test_registry_errors(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"allowed: .*iforest-early"):
+        methods.make("no-such-method", seed=0, scale="tiny")
+    with pytest.raises(ValueError, match="scale 'huge'"):
+        methods.make("audio-rms", seed=0, scale="huge")
+    with pytest.raises(ValueError, match="already registered"):
+        methods.register(
+            "audio-rms", lambda s, c: naive.AudioRMS(), family="naive", modality="audio", description=""
+        )
+    assert set(methods.names("naive")) == {"audio-rms", "imu-kurtosis"}
+    with pytest.raises(FileNotFoundError, match=r"method\.json"):
+        methods.load_detector(tmp_path)
+    windows, _ = toy_windows(10, 0, seed=7)
+    det = methods.make("audio-rms", seed=0, scale="tiny").fit(windows)
+    folder = methods.save_detector(det, "audio-rms", tmp_path / "m")
+    info = json.loads((folder / "method.json").read_text())
+    assert info["method"] == "audio-rms" and "numpy" in info["versions"]
+    info["format_version"] = 99
+    (folder / "method.json").write_text(json.dumps(info))
+    with pytest.raises(ModelFileError, match="format_version 99"):
+        methods.load_detector(folder)
+    methods.save_detector(det, "audio-rms", folder)
+    (folder / "model.bin").unlink()
+    with pytest.raises(FileNotFoundError, match=r"model\.bin"):
+        methods.load_detector(folder)
+    with pytest.raises(ModelFileError, match="'audio-rms' model, expected 'imu-kurtosis'"):
+        det.save(tmp_path / "x.npz")
+        naive.IMUKurtosis.load(tmp_path / "x.npz")

@@ -1,0 +1,195 @@
+"""The stepping core shared by `simulate`, the Gymnasium and the dm_env environments.
+
+Physics runs in control periods of `CONTROL_STEPS` steps through `mujoco.rollout` (C loop, no per-step
+Python), which also records MuJoCo's sensors at every physics step. Per period, Python computes the
+wheel speed commands, the faults' forces for every step of the period (vectorised) and the
+pedestrians' mocap positions, and hands them to the rollout as open-loop controls.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from mujoco import rollout as mj_rollout
+
+from sim.faults import FaultForcing, make_forcings
+from sim.scenario import Obstacle, Scenario
+from sim.world import World
+
+CONTROL_STEPS = 16
+"""Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
+
+SKID_TRACK_FACTOR = 1.6
+"""Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
+
+_CONTROL_SPEC = int(
+    mujoco.mjtState.mjSTATE_CTRL
+    | mujoco.mjtState.mjSTATE_QFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_MOCAP_POS
+)
+_STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+
+
+def pedestrian_positions(obstacles: tuple[Obstacle, ...], times: np.ndarray) -> np.ndarray:
+    """(n, P, 3) positions of the pedestrians (in obstacle order) at `times`, walking back and forth."""
+    peds = [ob for ob in obstacles if ob.kind == "pedestrian"]
+    out = np.empty((len(times), len(peds), 3))
+    for j, ob in enumerate(peds):
+        out[:, j, 2] = ob.size[2]
+        pts = np.array([(ob.x, ob.y), *ob.path], dtype=np.float64)
+        if len(pts) < 2 or ob.walk_speed <= 0:
+            out[:, j, 0], out[:, j, 1] = ob.x, ob.y
+            continue
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        total = cum[-1]
+        if total <= 0:
+            out[:, j, 0], out[:, j, 1] = ob.x, ob.y
+            continue
+        s = np.mod(times * ob.walk_speed, 2 * total)
+        s = np.where(s > total, 2 * total - s, s)
+        out[:, j, 0] = np.interp(s, cum, pts[:, 0])
+        out[:, j, 1] = np.interp(s, cum, pts[:, 1])
+    return out
+
+
+class Engine:
+    """One world stepped period by period; records sensordata at every physics step."""
+
+    def __init__(self, world: World, scenario: Scenario) -> None:
+        self.world = world
+        self.scenario = scenario
+        m = world.model
+        self.model = m
+        self.data = mujoco.MjData(m)
+        self.dt = float(m.opt.timestep)
+        self.nstate = mujoco.mj_stateSize(m, _STATE_SPEC)
+        self.ncontrol = mujoco.mj_stateSize(m, _CONTROL_SPEC)
+        self._qfrc0 = m.nu
+        self._xfrc0 = m.nu + m.nv
+        self._mocap0 = m.nu + m.nv + 6 * m.nbody
+        self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
+        self._states = np.zeros((1, CONTROL_STEPS, self.nstate))
+        self._runner = mj_rollout.Rollout(nthread=0)
+        self._models = [m]
+        self._datas = [self.data]
+        self._ped_track = np.zeros((0, 0, 3))
+        info = world.robot.info
+        self.radius = info.wheel_radius
+        track = info.track * (SKID_TRACK_FACTOR if info.model == "skid4" else 1.0)
+        self.half_track = 0.5 * track
+        names = info.wheel_names
+        self.side = np.array([-1.0 if ("left" in n) else 1.0 for n in names])
+        self.forcings: list[FaultForcing] = make_forcings(scenario.faults, info, scenario.seed)
+        self.ped_index = np.array([i for i, ob in enumerate(scenario.obstacles) if ob.kind == "pedestrian"])
+        self.ped_mocap = np.asarray(world.obstacle_mocap[self.ped_index], dtype=np.int64) if len(self.ped_index) else np.zeros(0, np.int64)
+        self.state = np.zeros(self.nstate)
+        self.sensordata = np.zeros(m.nsensordata)
+        self.time = 0.0
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial state (time 0), with the sensors evaluated."""
+        mujoco.mj_resetData(self.model, self.data)
+        self._set_mocap(self.data.mocap_pos, np.zeros(1))
+        mujoco.mj_forward(self.model, self.data)
+        mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
+        self.sensordata = self.data.sensordata.copy()
+        self.time = 0.0
+        self._ped_track = np.zeros((0, len(self.ped_index), 3))
+        self.forcings = make_forcings(self.scenario.faults, self.world.robot.info, self.scenario.seed)
+
+    def _set_mocap(self, target: np.ndarray, times: np.ndarray) -> None:
+        if len(self.ped_index) == 0:
+            return
+        pos = pedestrian_positions(tuple(self.scenario.obstacles[i] for i in self.ped_index), times)
+        target[..., self.ped_mocap, :] = pos[-1] if target.ndim == 2 else pos
+
+    def wheel_commands(self, v: float, w: float) -> np.ndarray:
+        """(W,) wheel speed commands (rad/s) for body speed v (m/s) and yaw rate w (rad/s)."""
+        cmd = (v + self.side * w * self.half_track) / self.radius
+        for forcing in self.forcings:
+            cmd[forcing.fault.wheel] *= forcing.speed_factor(self.time)
+        return cmd
+
+    def step(self, wheel_cmd: np.ndarray, out: np.ndarray) -> None:
+        """Run one period of `len(out)` steps with the given wheel commands; sensordata goes to `out`.
+
+        Args:
+            wheel_cmd: (W,) wheel speed commands, rad/s.
+            out: (k, nsensordata) C-contiguous array receiving the sensors after every step.
+        """
+        k = out.shape[0]
+        m = self.model
+        control = self._control if k == CONTROL_STEPS else self._control[:, :k]
+        control[0, :, : m.nu] = wheel_cmd
+        if self.forcings:
+            self._apply_faults(control[0], self.time + self.dt * np.arange(k))
+        if len(self.ped_index):
+            i0 = round(self.time / self.dt)
+            self._ensure_ped_track(i0 + k)
+            self._ped_view(control[0])[:, self.ped_mocap, :] = self._ped_track[i0 : i0 + k]
+        states = self._states if k == CONTROL_STEPS else self._states[:, :k]
+        self._runner.rollout(
+            self._models, self._datas, self.state[None], control, control_spec=_CONTROL_SPEC,
+            skip_checks=True, nstep=k, state=states, sensordata=out[None],
+        )  # fmt: skip
+        self.state[:] = states[0, k - 1]
+        self.sensordata = out[k - 1]
+        self.time = float(self.state[0])
+
+    def _ped_view(self, control: np.ndarray) -> np.ndarray:
+        k = control.shape[0]
+        return control[:, self._mocap0 : self._mocap0 + 3 * self.model.nmocap].reshape(k, self.model.nmocap, 3)
+
+    def _ensure_ped_track(self, n: int) -> None:
+        """Pedestrian positions at every physics step up to n, computed in blocks (vectorised)."""
+        have = len(self._ped_track)
+        if n <= have:
+            return
+        upto = max(n, 2 * have, 4096)
+        times = self.dt * np.arange(have, upto)
+        peds = tuple(self.scenario.obstacles[i] for i in self.ped_index)
+        self._ped_track = np.concatenate([self._ped_track, pedestrian_positions(peds, times)])
+
+    def _apply_faults(self, control: np.ndarray, times: np.ndarray) -> None:
+        k = len(times)
+        m = self.model
+        sl = self.world.sensors
+        sd = self.sensordata
+        quat = sd[sl.base_quat : sl.base_quat + 4]
+        forward, lateral = _axes(quat)
+        control[:, m.nu : m.nu + m.nv] = 0.0
+        xf = control[:, self._xfrc0 : self._mocap0].reshape(k, m.nbody, 6)
+        xf[:] = 0.0
+        steps = self.dt * np.arange(k)
+        for forcing in self.forcings:
+            wi = forcing.fault.wheel
+            angle = float(sd[sl.wheel_angle + wi])
+            omega = float(sd[sl.wheel_speed + wi])
+            torque = float(sd[sl.wheel_torque + wi])
+            theta = angle + omega * steps
+            body = int(self.world.wheel_body[wi])
+            dof = int(self.world.wheel_dof[wi])
+            wrench = np.zeros((k, 6))
+            qf = np.zeros(k)
+            forcing.apply(times, theta, omega, forward, lateral, torque, wrench, qf, self.dt)
+            xf[:, body, :] += wrench
+            control[:, m.nu + dof] += qf
+
+
+def _axes(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward (x) and left (y) axes of a body with orientation `quat` (w, x, y, z), in the world."""
+    qw, qx, qy, qz = quat
+    forward = np.array([1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qw * qz), 2 * (qx * qz - qw * qy)])
+    lateral = np.array([2 * (qx * qy - qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qw * qx)])
+    return forward, lateral
+
+
+def yaw_of(quat: np.ndarray) -> float:
+    """Heading about z of orientation `quat` (w, x, y, z)."""
+    qw, qx, qy, qz = quat
+    return math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))

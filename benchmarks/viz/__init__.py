@@ -1,0 +1,25 @@
+"""Rerun visualisation of one episode: the robot in its arena, what it heard and felt, the detector's scores.
+
+from benchmarks.viz import log_episode
+log_episode("runs/demo/dataset", "test-collision-000", model_dir="runs/demo/models/msvdd-seed0",
+            save="collision.rrd")   # then: rerun collision.rrd
+"""
+
+from benchmarks.viz.blueprint import build_blueprint
+from benchmarks.viz.config import TIMELINE, VizConfig
+from benchmarks.viz.recording import APPLICATION_ID, find_episode, load_model, log_episode, log_recording
+from benchmarks.viz.scoring import EpisodeScores, score_episode, window_starts
+
+__all__ = [
+    "APPLICATION_ID",
+    "TIMELINE",
+    "EpisodeScores",
+    "VizConfig",
+    "build_blueprint",
+    "find_episode",
+    "load_model",
+    "log_episode",
+    "log_recording",
+    "score_episode",
+    "window_starts",
+]

@@ -1,0 +1,176 @@
+"""Log one episode (and optionally a detector's scores on it) to a Rerun recording, headless by default."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+import rerun as rr
+
+from benchmarks.episode import Episode, read_episode
+from benchmarks.viz.blueprint import build_blueprint
+from benchmarks.viz.config import TIMELINE, VizConfig
+from benchmarks.viz.events import detection_events, log_events, trace_events
+from benchmarks.viz.scene import log_scene
+from benchmarks.viz.scoring import EpisodeScores, score_episode, window_starts
+from benchmarks.viz.series import (
+    episode_spectrogram,
+    log_audio,
+    log_imu,
+    log_scores,
+    log_spectrogram,
+    log_truth,
+    log_wheel_speeds,
+)
+from msvdd.contract import Detector
+from sim.trace import Trace
+
+APPLICATION_ID = "msvdd-bench"
+"""Rerun application id of every recording (the viewer groups recordings by it)."""
+
+
+def find_episode(dataset_dir: str | os.PathLike[str], episode_id: str) -> Path:
+    """The folder of `episode_id` in a dataset; FileNotFoundError naming the path and some known ids."""
+    data = Path(dataset_dir)
+    if not data.is_dir():
+        raise FileNotFoundError(f"dataset folder not found: {data}")
+    if not episode_id or Path(episode_id).name != episode_id or episode_id.startswith("."):
+        raise ValueError(f"episode id {episode_id!r} is not a folder name of {data}")
+    folder = data / episode_id
+    if not folder.is_dir():
+        known = sorted(p.name for p in data.iterdir() if (p / "meta.json").is_file())
+        hint = f"; episodes there include {', '.join(known[:6])}" if known else "; it holds no episodes"
+        raise FileNotFoundError(f"episode folder not found: {folder}{hint}")
+    return folder
+
+
+def load_model(model_dir: str | os.PathLike[str]) -> tuple[str, Detector]:
+    """A saved detector folder (from `msvdd-bench train`): (method name, detector).
+
+    Raises:
+        FileNotFoundError: the folder or its files are missing (the message names the path).
+        ValueError: the folder holds a model of another format or method registry.
+    """
+    from benchmarks.methods import load_detector
+
+    folder = Path(model_dir)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"model folder not found: {folder}")
+    return load_detector(folder)
+
+
+def log_recording(
+    rec: rr.RecordingStream,
+    episode: Episode,
+    trace: Trace,
+    scores: EpisodeScores | None,
+    config: VizConfig,
+    hop_s: float,
+    audio_playback: bool = True,
+) -> None:
+    """Log everything of one episode into an open recording stream (the lower-level entry).
+
+    Args:
+        rec: the recording (any sinks).
+        episode: the episode's sensor files.
+        trace: its simulator trace.
+        scores: a detector's scores on it, or None.
+        config: display settings.
+        hop_s: window hop, s: the last-2-s spectrogram is logged at every window end.
+        audio_playback: also log the episode's audio file for the viewer's audio player.
+    """
+    log_scene(rec, trace, config)
+    log_imu(rec, episode)
+    log_wheel_speeds(rec, trace, config)
+    log_audio(rec, episode, config)
+    spec = episode_spectrogram(episode, config)
+    ends = scores.end_s if scores is not None else window_starts(episode.meta.duration_s, hop_s) + 2.0
+    log_spectrogram(rec, spec, ends, config)
+    log_truth(rec, episode, trace.robot.wheel_names)
+    events = trace_events(trace)
+    if scores is not None:
+        log_scores(rec, scores)
+        events += detection_events(scores)
+    log_events(rec, events)
+    if audio_playback:
+        blob = (episode.path / "audio.flac").read_bytes()
+        rec.send_columns(
+            "audio",
+            indexes=[rr.TimeColumn(TIMELINE, duration=[0.0])],
+            columns=rr.AssetAudio.columns(blob=[blob], media_type=["audio/flac"]),
+        )
+
+
+def log_episode(
+    dataset_dir: str | os.PathLike[str],
+    episode_id: str,
+    *,
+    model_dir: str | os.PathLike[str] | None = None,
+    save: str | os.PathLike[str] | None = None,
+    spawn: bool = False,
+    hop_s: float = 0.5,
+    config: VizConfig | None = None,
+    audio_playback: bool = True,
+) -> Path | None:
+    """Log one episode of a dataset to Rerun: a `.rrd` file (`save`), a spawned viewer (`spawn`), or both.
+
+    Args:
+        dataset_dir: dataset folder (from `msvdd-bench generate`).
+        episode_id: episode folder name, e.g. `test-collision-000`.
+        model_dir: a saved detector folder; its scores, threshold and detections are logged too.
+        save: write the recording to this file (atomically: nothing is left on error).
+        spawn: open a Rerun viewer and stream to it.
+        hop_s: hop between the scored 2 s windows, s.
+        config: display settings.
+        audio_playback: embed the episode's audio file for the viewer's audio player.
+
+    Returns:
+        The written file, or None when only a viewer was spawned.
+
+    Raises:
+        FileNotFoundError: dataset, episode or model folder (or a file in them) missing.
+        ValueError: neither `save` nor `spawn`, a bad hop, or a model that cannot score this episode.
+    """
+    if save is None and not spawn:
+        raise ValueError("log_episode needs save=PATH (a .rrd file) or spawn=True")
+    if not hop_s > 0:
+        raise ValueError(f"hop_s must be > 0 s, got {hop_s}")
+    config = config or VizConfig()
+    episode = read_episode(find_episode(dataset_dir, episode_id))
+    trace = episode.trace()
+    scores = None
+    if model_dir is not None:
+        method, detector = load_model(model_dir)
+        scores = score_episode(episode, detector, method, hop_s, model_dir=Path(model_dir))
+    title = f"{episode_id} ({episode.meta.category}, unit {episode.meta.unit_id})"
+    blueprint = build_blueprint(title, scored=scores is not None, audio_playback=audio_playback)
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"{Path(dataset_dir).name}/{episode_id}")
+    target = Path(save) if save is not None else None
+    tmp: Path | None = None
+    try:
+        if target is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, name = tempfile.mkstemp(prefix=f".{target.name}.partial-", suffix=".rrd", dir=target.parent)
+            os.close(fd)
+            tmp = Path(name)
+        if spawn:
+            rec.spawn(connect=tmp is None, default_blueprint=blueprint)
+            if tmp is not None:
+                rec.set_sinks(rr.GrpcSink(), rr.FileSink(tmp), default_blueprint=blueprint)
+        elif tmp is not None:
+            rec.save(tmp, default_blueprint=blueprint)
+        rec.send_recording_name(episode_id)
+        log_recording(rec, episode, trace, scores, config, hop_s, audio_playback)
+        rec.flush()
+        rec.disconnect()
+        if tmp is not None and target is not None:
+            os.replace(tmp, target)
+            tmp = None
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(Exception):
+                rec.disconnect()
+            tmp.unlink(missing_ok=True)
+    return target

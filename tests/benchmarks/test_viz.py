@@ -1,0 +1,265 @@
+"""Rerun recordings of an episode: written headless, read back, checked entity by entity; bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+import synth_audio
+from benchmarks.cli import main
+from benchmarks.episode import EpisodeMeta, read_episode, write_episode
+from benchmarks.methods import make, save_detector
+from benchmarks.viz import VizConfig, log_episode, score_episode, window_starts
+from benchmarks.viz.scene import wheel_fault_changes
+from benchmarks.viz.series import envelope_block
+from benchmarks.viz.signals import display_indices
+from msvdd import preprocess
+from sim.trace import ContactEvents, FaultRecord, ObstacleRecord, RobotInfo, Trace, TransientEvents
+from sim.vocab import COLLISION, MECHANICAL, SUB_KINDS
+
+DURATION = 3.0
+PHYS_DT = 0.005
+IMU_RATE = 200.0
+AUDIO_RATE = 44100
+EPISODE = "test-fault-000"
+
+
+def tiny_trace(faults: tuple[tuple[int, float, float], ...] = ((1, 1.5, 1.0),)) -> Trace:
+    """A 3 s skid-steer trace driving a circle: one wall contact at 1.2 s, faults (wheel, onset, length)."""
+    rng = np.random.default_rng(0)
+    n, m = round(DURATION / PHYS_DT), round(DURATION * IMU_RATE)
+    t = np.arange(n) * PHYS_DT
+    heading = 0.4 * t
+    pos = np.stack([np.cos(heading), np.sin(heading), np.full(n, 0.08)], axis=1)
+    yaw = heading + np.pi / 2
+    quat = np.stack([np.cos(yaw / 2), np.zeros(n), np.zeros(n), np.sin(yaw / 2)], axis=1)
+    wheels = ("front_left", "front_right", "back_left", "back_right")
+    wheel_pos = np.array([[0.15, 0.2, 0.0], [0.15, -0.2, 0.0], [-0.15, 0.2, 0.0], [-0.15, -0.2, 0.0]])
+    robot = RobotInfo(
+        "skid4", 3, 20.0, wheels, np.full(4, 0.08), wheel_pos, np.array([[0.2, 0.1, 0.1], [0.2, -0.1, 0.1]]),
+        np.zeros(3), 20.0, 12, 4, 20000.0, 30, 0.4, 0.3,
+    )  # fmt: skip
+    speed = np.full((n, 4), 5.0)
+    contacts = ContactEvents(
+        np.array([1.2]), np.array([[1.0, 0.5, 0.1]]), np.array([[1.0, 0, 0]]), np.array([2.5]),
+        np.array([0.4]), np.array([0.05]), ("wall",), ("plaster",),
+    )  # fmt: skip
+    transients = TransientEvents(
+        np.array([0.7]), np.array([[0.5, 0.8, 0.0]]), np.array([2]), np.array([0.3]), ("seam",)
+    )
+    fault_records = tuple(FaultRecord("bearing", w, 0.6, on, d, 3.57, 2100.0, 0.04) for w, on, d in faults)
+    imu_time = np.arange(m) / IMU_RATE
+    label = np.zeros(m, np.int8)
+    sub_kind = np.zeros(m, np.int16)
+    label_wheel = -np.ones(m, np.int8)
+    coll = (imu_time >= 1.2) & (imu_time < 1.3)
+    label[coll], sub_kind[coll] = COLLISION, SUB_KINDS.index("wall")
+    w, on, d = faults[0]
+    mech = (imu_time >= on) & (imu_time < on + d) & ~coll
+    label[mech], sub_kind[mech], label_wheel[mech] = MECHANICAL, SUB_KINDS.index("bearing"), w
+    obstacle = ObstacleRecord("wall", "plaster", np.array([1.2, 0.5, 0.5]), np.array([0.05, 1.0, 0.5]), 0.1)
+    return Trace(
+        "tiny", 7, "indoor", "tile", DURATION, PHYS_DT, IMU_RATE, robot, np.array([3.0, 3.0]), t,
+        np.cumsum(speed, axis=0) * PHYS_DT, speed, rng.normal(size=(n, 4)), pos, quat,
+        rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 2, 3)), imu_time,
+        0.01 * rng.normal(size=m), rng.normal(size=(m, 3)), rng.normal(size=(m, 3)), contacts, transients,
+        fault_records, (obstacle,), np.tile(obstacle.position, (m, 1, 1)), label, sub_kind, label_wheel,
+    )  # fmt: skip
+
+
+def tiny_audio() -> synth_audio.Audio:
+    """3 s of a 1 kHz tone in noise, louder after the contact."""
+    rng = np.random.default_rng(1)
+    t = np.arange(round(DURATION * AUDIO_RATE)) / AUDIO_RATE
+    tone = 0.1 * np.sin(2 * np.pi * 1000.0 * t) * (1.0 + 4.0 * (t > 1.2))
+    samples = np.stack([tone, 0.5 * tone], axis=1) + 0.01 * rng.normal(size=(t.size, 2))
+    return synth_audio.Audio(samples.astype(np.float32), AUDIO_RATE)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A dataset folder with one hand-made episode (no manifest: the viewer reads episode folders)."""
+    root = tmp_path_factory.mktemp("vizdata") / "data"
+    meta = EpisodeMeta(EPISODE, "fault", "test", 3, 7, 10.0, DURATION)
+    write_episode(root / EPISODE, meta, {"name": "tiny"}, tiny_trace(), tiny_audio())
+    return root
+
+
+@pytest.fixture(scope="module")
+def model(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An `audio-rms` detector fitted on the episode's first windows."""
+    episode = read_episode(dataset / EPISODE)
+    windows = preprocess.frame_windows(
+        preprocess.decimate_audio(episode.audio),
+        episode.imu_vel_z,
+        np.array([0.0, 0.25, 0.5]),
+        imu6=episode.imu6,
+    )
+    detector = make("audio-rms", seed=0, scale="tiny").fit(windows)
+    return save_detector(detector, "audio-rms", tmp_path_factory.mktemp("vizmodel") / "rms")
+
+
+def _rows(path: Path) -> dict[str, int]:
+    """Temporal rows per `entity:component` of a recording, read back from the file."""
+    summary = RrdReader(path).store().summary()
+    rows: dict[str, int] = {}
+    static: set[str] = set()
+    for line in summary.splitlines():
+        found = re.match(r"(\S+)\s+rows=(\d+)\s+static=(\w+)\s+timelines=\[.*?\]\s+cols=\[(.*)\]", line)
+        assert found, line
+        entity, count, is_static, cols = found.groups()
+        for col in re.findall(r"'([^']+)'", cols):
+            if col == "time":
+                continue
+            key = f"{entity}:{col}"
+            if is_static == "True":
+                static.add(key)
+            else:
+                rows[key] = rows.get(key, 0) + int(count)
+    rows.update({f"static {k}": 1 for k in static})
+    return rows
+
+
+def _column(path: Path, entity: str, component: str) -> tuple[np.ndarray, np.ndarray]:
+    """(times in s, values) of one temporal scalar component, read back from the file."""
+    times, values = [], []
+    for chunk in RrdReader(path).store().stream().to_chunks():
+        if chunk.entity_path != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        col = next(n for n in names if n.endswith(component))
+        times.append(batch.column("time").cast("int64").to_numpy() / 1e9)
+        values.append(np.array([np.asarray(v, dtype=np.float64) for v in batch.column(col).to_pylist()]))
+    order = np.argsort(np.concatenate(times))
+    return np.concatenate(times)[order], np.concatenate(values)[order]
+
+
+@pytest.fixture(scope="module")
+def recording(dataset: Path, model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("viz") / "sub" / "episode.rrd"
+    path = log_episode(dataset, EPISODE, model_dir=model, save=out)
+    assert path == out
+    return out
+
+
+def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, recording: Path) -> None:
+    rows = _rows(recording)
+    episode = read_episode(dataset / EPISODE)
+    trace = episode.trace()
+    cfg = VizConfig()
+    m = episode.imu_time.size
+    for entity in ("signals/imu/vel_z", "signals/imu/acc", "signals/imu/gyro", "truth/label"):
+        assert rows[f"/{entity}:Scalars:scalars"] == m, entity
+    block = envelope_block(AUDIO_RATE, cfg)
+    assert block == 44
+    for side in ("left", "right"):
+        assert rows[f"/signals/audio/{side}:Scalars:scalars"] == math.ceil(episode.audio.shape[0] / block)
+    n_windows = window_starts(DURATION, 0.5).size
+    assert n_windows == 3
+    assert rows["/detector/score:Scalars:scalars"] == n_windows
+    assert rows["/detector/threshold:Scalars:scalars"] == n_windows
+    n_pose = display_indices(trace.time, cfg.pose_rate_hz).size
+    assert rows["/world/robot:Transform3D:translation"] == n_pose
+    assert rows["/signals/wheels/speed:Scalars:scalars"] == n_pose
+    for name in trace.robot.wheel_names:
+        assert rows[f"/world/robot/wheels/{name}/tyre:Transform3D:quaternion"] == n_pose
+        assert f"static /world/robot/wheels/{name}/tyre:Cylinders3D:radii" in rows
+    assert rows["/world/robot/wheels/front_right/tyre:Cylinders3D:colors"] == 3  # healthy, faulty, healthy
+    assert rows["/world/contacts:Points3D:positions"] == 1
+    assert rows["/world/transients:Points3D:positions"] == 1
+    assert rows["/world/obstacles:Boxes3D:centers"] == display_indices(trace.imu_time, cfg.pose_rate_hz).size
+    assert rows["/states/truth:StateChange:state"] == 5  # normal, collision, normal, mechanical, normal
+    assert rows["/spectrogram/window:Image:buffer"] == n_windows
+    assert "static /spectrogram/episode:Image:buffer" in rows
+    assert rows["/audio:AssetAudio:blob"] == 1
+    # collision + transient + fault onset + fault end + detection edges
+    assert rows["/events:TextLog:text"] >= 4
+    for key in ("static /world/arena/floor:Boxes3D:half_sizes", "static /world/robot/body:Boxes3D:half_sizes",
+                "static /world/trajectory:LineStrips3D:strips"):  # fmt: skip
+        assert key in rows
+    assert RrdReader(recording).blueprints(), "the file carries a default blueprint"
+
+
+def test_scores_threshold_and_detections_match_the_detector(
+    dataset: Path, model: Path, recording: Path
+) -> None:
+    from benchmarks.methods import load_detector
+
+    name, detector = load_detector(model)
+    scores = score_episode(read_episode(dataset / EPISODE), detector, name, 0.5)
+    t, score = _column(recording, "/detector/score", "scalars")
+    np.testing.assert_allclose(t, [2.0, 2.5, 3.0])  # logged at window END times
+    np.testing.assert_allclose(score.ravel(), scores.score)
+    _, threshold = _column(recording, "/detector/threshold", "scalars")
+    np.testing.assert_allclose(threshold.ravel(), detector.threshold_)
+    # the tone gets 5x louder after 1.2 s: later windows score higher than the training windows
+    assert scores.detected.any()
+    rows = _rows(recording)
+    assert rows["/detector/detection:Scalars:scalars"] == int(scores.detected.sum())
+    t_label, label = _column(recording, "/truth/label", "scalars")
+    np.testing.assert_allclose(t_label, np.arange(600) / IMU_RATE)
+    assert set(np.unique(label)) == {0.0, 1.0, 2.0}
+
+
+def test_without_model_no_detector_entities(dataset: Path, tmp_path: Path) -> None:
+    out = log_episode(dataset, EPISODE, save=tmp_path / "plain.rrd", audio_playback=False)
+    assert out is not None
+    rows = _rows(out)
+    assert not any(k.startswith("/detector") for k in rows)
+    assert "/audio:AssetAudio:blob" not in rows
+    assert rows["/spectrogram/window:Image:buffer"] == 3
+
+
+def test_wheel_fault_changes_merge_overlaps() -> None:
+    trace = tiny_trace(faults=((1, 1.0, 1.0), (1, 1.5, 1.0), (0, 0.5, 0.2)))
+    t, faulty = wheel_fault_changes(trace, 1)
+    np.testing.assert_allclose(t, [0.0, 1.0, 2.5])
+    np.testing.assert_array_equal(faulty, [False, True, False])
+    t0, f0 = wheel_fault_changes(trace, 0)
+    np.testing.assert_allclose(t0, [0.0, 0.5, 0.7])
+    np.testing.assert_array_equal(f0, [False, True, False])
+    assert wheel_fault_changes(trace, 3)[1].tolist() == [False]
+
+
+def test_bad_input_names_the_path(dataset: Path, model: Path, tmp_path: Path) -> None:
+    out = tmp_path / "x.rrd"
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        log_episode(tmp_path / "nowhere", EPISODE, save=out)
+    with pytest.raises(FileNotFoundError, match=f"test-nope-000.*{EPISODE}"):
+        log_episode(dataset, "test-nope-000", save=out)
+    with pytest.raises(ValueError, match="not a folder name"):
+        log_episode(dataset, "../data", save=out)
+    with pytest.raises(FileNotFoundError, match="no-model"):
+        log_episode(dataset, EPISODE, model_dir=tmp_path / "no-model", save=out)
+    other = tmp_path / "other-format"
+    other.mkdir()
+    info = json.loads((model / "method.json").read_text())
+    (other / "method.json").write_text(json.dumps({**info, "format_version": 99}))
+    with pytest.raises(ValueError, match=r"other-format.*format_version 99"):
+        log_episode(dataset, EPISODE, model_dir=other, save=out)
+    with pytest.raises(ValueError, match="save=PATH"):
+        log_episode(dataset, EPISODE)
+    with pytest.raises(ValueError, match="hop_s"):
+        log_episode(dataset, EPISODE, save=out, hop_s=0.0)
+    assert list(tmp_path.glob("*.rrd")) == [] and not list(tmp_path.glob(".x.rrd*"))
+
+
+def test_cli_writes_a_recording_and_reports_errors(
+    dataset: Path, model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cli.rrd"
+    assert (
+        main(["viz", "--data", str(dataset), "--episode", EPISODE, "--model", str(model), "--save", str(out)])
+        == 0
+    )
+    assert f"rerun {out}" in capsys.readouterr().out
+    assert _rows(out)["/detector/score:Scalars:scalars"] == 3
+    assert main(["viz", "--data", str(dataset), "--episode", "missing-000", "--save", str(out)]) == 2
+    assert "msvdd-bench viz: error: episode folder not found" in capsys.readouterr().err

@@ -1,0 +1,97 @@
+"""Display signal processing of the Rerun viewer against analytic answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks.viz.config import VizConfig
+from benchmarks.viz.scene import _recent, contact_radii
+from benchmarks.viz.signals import (
+    band_edges,
+    band_spectrogram,
+    colorize_db,
+    display_indices,
+    minmax_envelope,
+    run_starts,
+)
+
+
+def test_envelope_is_blockwise_min_max_with_short_tail() -> None:
+    x = np.array([3.0, -1.0, 2.0, 5.0, -4.0, 0.5, 7.0])
+    mins, maxs = minmax_envelope(x, 3)
+    np.testing.assert_array_equal(mins, [-1.0, -4.0, 7.0])
+    np.testing.assert_array_equal(maxs, [3.0, 5.0, 7.0])
+    with pytest.raises(ValueError, match="block"):
+        minmax_envelope(x, 0)
+
+
+def test_envelope_of_a_sine_reaches_its_amplitude() -> None:
+    rate, f, amp = 44100, 50.0, 0.7
+    t = np.arange(rate) / rate
+    mins, maxs = minmax_envelope(amp * np.sin(2 * np.pi * f * t), 441 * 2)  # one period per block
+    # the crest falls half-way between two samples: the nearest sample is pi f / rate rad from it
+    crest = amp * np.cos(np.pi * f / rate)
+    np.testing.assert_allclose(maxs, crest, rtol=1e-9)
+    np.testing.assert_allclose(mins, -crest, rtol=1e-9)
+
+
+def test_display_indices_keep_ends_and_rate() -> None:
+    t = np.arange(1001) * 0.001  # 1 kHz for 1 s
+    idx = display_indices(t, 100.0)
+    assert idx[0] == 0 and idx[-1] == 1000
+    np.testing.assert_allclose(np.diff(t[idx])[:-1], 0.01, atol=1e-9)
+    sparse = np.array([0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(display_indices(sparse, 100.0), [0, 1, 2])
+    assert display_indices(np.zeros(0), 10.0).size == 0
+
+
+@pytest.mark.parametrize("freq", [250.0, 1000.0, 6000.0])
+def test_spectrogram_peak_band_holds_the_tone(freq: float) -> None:
+    rate, amp = 44100.0, 0.5
+    t = np.arange(int(rate)) / rate
+    times, centres, db = band_spectrogram(
+        amp * np.sin(2 * np.pi * freq * t), rate, 1024, 0.02, 96, 40.0, 16000.0
+    )
+    edges = band_edges(rate, 1024, 96, 40.0, 16000.0)
+    lo, hi = edges[:-1] * rate / 1024, edges[1:] * rate / 1024
+    peak = int(np.argmax(db[:, db.shape[1] // 2]))
+    assert lo[peak] - rate / 1024 <= freq <= hi[peak] + rate / 1024
+    assert db.shape == (centres.size, times.size)
+    np.testing.assert_allclose(np.diff(times), 882 / rate)
+    # Parseval: the band powers (mean per bin x bins) of a pure tone add up to A**2 / 2.
+    total = (10 ** (db[:, db.shape[1] // 2] / 10) * np.diff(edges)).sum()
+    assert total == pytest.approx(amp**2 / 2, rel=0.02)
+
+
+def test_colorize_maps_the_loudest_cell_to_the_top_of_the_table() -> None:
+    lut = np.stack([np.arange(256)] * 3, axis=1).astype(np.uint8)
+    db = np.array([[0.0, -40.0], [-100.0, -80.0]])  # band 0 (low) loud
+    img = colorize_db(db, 80.0, lut)
+    assert img.shape == (2, 2, 3) and img.dtype == np.uint8
+    # low band is the bottom row
+    np.testing.assert_array_equal(img[1, :, 0], [255, 128])
+    np.testing.assert_array_equal(img[0, :, 0], [0, 0])
+
+
+def test_run_starts() -> None:
+    np.testing.assert_array_equal(run_starts(np.array([0, 0, 1, 1, 1, 0, 2])), [0, 2, 5, 6])
+    assert run_starts(np.zeros(0)).size == 0
+
+
+def test_recent_markers_keep_the_last_cap_events() -> None:
+    take, lengths = _recent(np.array([2, 0, 1]), 2)
+    np.testing.assert_array_equal(lengths, [1, 2, 2])
+    np.testing.assert_array_equal(take, [2, 2, 0, 0, 1])
+
+
+def test_contact_radius_grows_with_sqrt_impulse() -> None:
+    cfg = VizConfig(contact_radius_m=0.02, contact_radius_per_sqrt_ns=0.05)
+    np.testing.assert_allclose(contact_radii(np.array([0.0, 4.0, -1.0]), cfg), [0.02, 0.12, 0.02])
+
+
+def test_config_refuses_bad_values() -> None:
+    with pytest.raises(ValueError, match="pose_rate_hz"):
+        VizConfig(pose_rate_hz=0.0)
+    with pytest.raises(ValueError, match="spectrogram_fmin_hz"):
+        VizConfig(spectrogram_fmin_hz=20000.0)

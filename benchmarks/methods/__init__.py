@@ -5,6 +5,8 @@ det = make("iforest-early", seed=0, scale="quick").fit(train)
 save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("runs/x/model")
 """
 
+from benchmarks.methods import deep as _deep
+from benchmarks.methods import deep_if as _deep_if
 from benchmarks.methods import naive as _naive
 from benchmarks.methods import shallow as _shallow
 from benchmarks.methods.base import SCALES, THRESHOLD_PERCENTILE
@@ -22,6 +24,8 @@ from benchmarks.methods.registry import (
 
 _naive.register_methods()
 _shallow.register_methods()
+_deep.register_methods()
+_deep_if.register_methods()
 
 __all__ = [
     "FAMILIES",

@@ -1,0 +1,151 @@
+"""What the deep baselines share: M-SVDD's network, normaliser and training loop, seeding, scoring, files.
+
+Every deep baseline is `msvdd.network.FusionNet` (the paper's CRNN audio encoder, LSTM IMU encoder,
+fusion and decoders) plus a small method-specific head and loss, trained by `msvdd.training.train_network`
+with the same budget as M-SVDD at each scale (`MSVDDConfig.tiny()`, `.quick()`, `.paper()`). Inputs are
+z-scored with `msvdd.preprocess.Normalizer` statistics of the training windows and smoothed per window as
+M-SVDD does. All random draws (initialisation, dropout, sampling, shuffling) happen inside a forked torch RNG
+seeded from the method's seed, so the same seed gives the same model bit for bit. Model files are `.npz`
+(weights as float arrays, config as JSON): no pickle. They run on the CPU (config device "cpu").
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any, ClassVar, Self
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from benchmarks.methods.base import WindowDetector, check_scale
+from msvdd.config import MSVDDConfig
+from msvdd.contract import Windows
+from msvdd.network import NetOutput
+from msvdd.preprocess import Normalizer
+from msvdd.training import prepare_tensors, split_train_val, train_network
+
+SCORE_CHUNK = 256
+"""Windows per forward pass when scoring."""
+
+
+def scale_config(scale: str, seed: int, **overrides: Any) -> MSVDDConfig:
+    """M-SVDD's budget at `scale` (tiny, quick, paper), with `seed` and overrides."""
+    check_scale(scale)
+    factory = {"tiny": MSVDDConfig.tiny, "quick": MSVDDConfig.quick, "paper": MSVDDConfig.paper}[scale]
+    return factory(seed=seed, **overrides)
+
+
+def reconstruction_error(out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
+    """(N,) per-window Huber reconstruction error: mean over samples, summed over reconstructed modalities."""
+    err = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
+    if out.audio_rec is not None:
+        err = err + F.huber_loss(out.audio_rec, audio, reduction="none").mean(dim=(1, 2))
+    if out.imu_rec is not None:
+        err = err + F.huber_loss(out.imu_rec, imu, reduction="none").mean(dim=1)
+    return err
+
+
+class DeepDetector(WindowDetector):
+    """Base of the deep baselines: subclasses build a module, a loss, post-training statistics and a score."""
+
+    kind: ClassVar[str] = "deep"
+    extra_keys: ClassVar[tuple[str, ...]] = ()
+    """Names of the post-training tensors (`self.extra`) saved with the weights."""
+
+    def __init__(self, config: MSVDDConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.module: nn.Module = nn.Module()
+        self.normalizer: Normalizer | None = None
+        self.extra: dict[str, torch.Tensor] = {}
+
+    @abc.abstractmethod
+    def build(self) -> nn.Module:
+        """A freshly initialised module (called inside the seeded RNG)."""
+
+    @abc.abstractmethod
+    def loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        """Training loss of one batch (audio, imu)."""
+
+    @abc.abstractmethod
+    def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
+        """(N,) anomaly scores of normalised tensors, using `self.module` and `self.extra`."""
+
+    def before_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
+        """Hook run after `build`, before training (e.g. Deep SVDD's centre); default nothing."""
+        return None
+
+    def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
+        """Hook run on all training tensors after training (statistics the score needs); default nothing."""
+        return None
+
+    @property
+    def min_windows(self) -> int:
+        """Fewest training windows: one full batch after the validation split."""
+        return int(np.ceil(self.config.batch_size / (1.0 - self.config.val_fraction))) + 1
+
+    def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
+        if self.normalizer is None:
+            raise RuntimeError(f"{type(self).__name__} has no normaliser; fit it first")
+        return prepare_tensors(
+            batch, self.normalizer, self.config.smooth_window, self.config.smooth_polyorder
+        )
+
+    def _fit(self, train: Windows, val: Windows | None) -> None:
+        if len(train) < self.min_windows:
+            raise ValueError(
+                f"train has {len(train)} windows; {type(self).__name__} needs at least {self.min_windows} "
+                f"(batch {self.config.batch_size} after a {self.config.val_fraction:.0%} validation split)"
+            )
+        cfg = self.config
+        if val is None:
+            tr_idx, va_idx = split_train_val(len(train), cfg.val_fraction, cfg.seed)
+            train_part, val_part = train.subset(tr_idx), train.subset(va_idx)
+        else:
+            train_part, val_part = train, val
+        self.normalizer = Normalizer.fit(train_part)
+        audio, imu = self._tensors(train_part)
+        val_tensors = self._tensors(val_part) if len(val_part) else None
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(cfg.seed)
+            self.module = self.build()
+            self.before_training(audio, imu)
+            train_network(self.module, self.loss, (audio, imu), val_tensors, cfg)
+            self.module.eval()
+            with torch.no_grad():
+                self.after_training(*self._tensors(train))
+
+    def _score(self, batch: Windows) -> np.ndarray:
+        audio, imu = self._tensors(batch)
+        self.module.eval()
+        parts = []
+        with torch.no_grad():
+            for start in range(0, audio.shape[0], SCORE_CHUNK):
+                parts.append(
+                    self.batch_scores(audio[start : start + SCORE_CHUNK], imu[start : start + SCORE_CHUNK])
+                )
+        return torch.cat(parts).double().numpy()
+
+    def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        if self.normalizer is None:
+            raise RuntimeError("not fitted")
+        arrays = {f"net/{k}": v.detach().cpu().numpy() for k, v in self.module.state_dict().items()}
+        arrays |= {f"norm/{k}": v.numpy() for k, v in self.normalizer.state().items()}
+        arrays |= {f"extra/{k}": self.extra[k].detach().cpu().numpy() for k in self.extra_keys}
+        return {"config": self.config.to_dict(), "torch": torch.__version__}, arrays
+
+    @classmethod
+    def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
+        detector = cls(MSVDDConfig.from_dict(header["config"]))
+        with torch.random.fork_rng(devices=[]):
+            detector.module = detector.build()
+        state = {k[4:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("net/")}
+        detector.module.load_state_dict(state)
+        detector.module.eval()
+        detector.normalizer = Normalizer.from_state(
+            {k[5:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("norm/")}
+        )
+        detector.extra = {k: torch.from_numpy(arrays[f"extra/{k}"].copy()) for k in cls.extra_keys}
+        return detector

@@ -7,12 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.stats import kurtosis
+import torch
+from scipy.stats import kurtosis, multivariate_normal
 from sklearn.svm import OneClassSVM
 
 from benchmarks import methods
 from benchmarks.methods import naive
 from benchmarks.methods._io import ModelFileError
+from benchmarks.methods.deep import DAGMM_RIDGE, _center, gmm_energy, gmm_parameters
 from benchmarks.methods.kernel_svdd import KernelSVDD, rbf_kernel, solve_svdd_dual
 from benchmarks.methods.shallow import ShallowConfig, ShallowDetector
 from msvdd.synthetic import toy_windows
@@ -161,3 +163,29 @@ def test_registry_errors(tmp_path: Path) -> None:
     with pytest.raises(ModelFileError, match="'audio-rms' model, expected 'imu-kurtosis'"):
         det.save(tmp_path / "x.npz")
         naive.IMUKurtosis.load(tmp_path / "x.npz")
+
+
+def test_dagmm_energy_matches_scipy_mixture_density() -> None:
+    rng = np.random.default_rng(8)
+    x = rng.standard_normal((40, 3))
+    gamma = rng.dirichlet(np.ones(2), size=40)
+    phi, mu, cov = gmm_parameters(torch.from_numpy(x), torch.from_numpy(gamma))
+    weights = gamma.sum(axis=0)
+    np.testing.assert_allclose(phi.numpy(), weights / 40)
+    for k in range(2):
+        want_mu = gamma[:, k] @ x / weights[k]
+        centred = x - want_mu
+        want_cov = (gamma[:, k, None] * centred).T @ centred / weights[k] + DAGMM_RIDGE * np.eye(3)
+        np.testing.assert_allclose(mu[k].numpy(), want_mu, atol=1e-12)
+        np.testing.assert_allclose(cov[k].numpy(), want_cov, atol=1e-12)
+    probe = rng.standard_normal((5, 3))
+    density = sum(
+        float(phi[k]) * multivariate_normal(mu[k].numpy(), cov[k].numpy()).pdf(probe) for k in range(2)
+    )
+    energy = gmm_energy(torch.from_numpy(probe), phi, mu, cov).numpy()
+    np.testing.assert_allclose(energy, -np.log(density), rtol=1e-9)
+
+
+def test_deep_svdd_centre_is_kept_away_from_zero() -> None:
+    z = torch.tensor([[0.05, -0.02, 1.0], [0.03, -0.04, 3.0]])
+    np.testing.assert_allclose(_center(z).numpy(), [0.1, -0.1, 2.0])

@@ -138,3 +138,21 @@ def test_compute_metrics_refuses_a_test_set_without_anomalies() -> None:
         metrics.compute_metrics(np.arange(2.0), 1.0, ["normal", "crash"])
     with pytest.raises(ValueError, match="NaN"):
         metrics.roc_auc([0, 1], [0.0, float("nan")])
+
+
+def test_compute_metrics_with_event_timing() -> None:
+    kinds = np.array(["normal", "normal", "collision", "collision", "normal", "mechanical"])
+    scores = np.array([0.1, 0.2, 0.9, 0.3, 0.1, 0.8])
+    m = metrics.compute_metrics(
+        scores,
+        0.5,
+        kinds,
+        window_episode=np.array([0, 0, 0, 0, 1, 1]),
+        window_start=np.array([0.0, 1.0, 2.0, 3.0, 0.0, 1.0]),
+        event_episode=np.array([0, 1]),
+        event_onset=np.array([2.5, 0.5]),
+    )
+    # episode 0: window at 2.0 s (ends 4.0) flagged -> 1.5 s; episode 1: window at 1.0 (ends 3.0) -> 2.5 s
+    assert (m.delay_mean_s, m.detection_rate, m.n_events) == pytest.approx((2.0, 1.0, 2))
+    with pytest.raises(ValueError, match="together"):
+        metrics.compute_metrics(scores, 0.5, kinds, window_episode=np.zeros(6))

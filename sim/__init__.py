@@ -1,6 +1,29 @@
-"""The MuJoCo robot simulator: scenarios, world building, driving, faults, rollout and environments."""
+"""The MuJoCo robot simulator: scenarios, world building, driving, faults, rollout and environments.
 
-from sim.trace import (
+`from sim import Scenario, simulate`; `simulate(scenario) -> Trace`. Importing `sim` registers the
+Gymnasium environment `robot_anomaly/DiffDrive-v0`.
+"""
+
+import os
+
+# dm_control picks an OpenGL backend on import; the simulator never renders, so default to none.
+os.environ.setdefault("MUJOCO_GL", "disable")
+
+from sim.envs import DiffDriveEnv, make_dm_env, make_env, register_envs  # noqa: E402
+from sim.random_scenarios import random_scenario, scenario_presets  # noqa: E402
+from sim.rollout import simulate  # noqa: E402
+from sim.scenario import (  # noqa: E402
+    Fault,
+    Obstacle,
+    Route,
+    Scenario,
+    ScenarioError,
+    Sensors,
+    Transient,
+    Unit,
+    Waypoint,
+)
+from sim.trace import (  # noqa: E402
     ContactEvents,
     FaultRecord,
     ObstacleRecord,
@@ -10,12 +33,29 @@ from sim.trace import (
     TransientEvents,
 )
 
+register_envs()
+
 __all__ = [
     "ContactEvents",
+    "DiffDriveEnv",
+    "Fault",
     "FaultRecord",
+    "Obstacle",
     "ObstacleRecord",
     "RobotInfo",
+    "Route",
+    "Scenario",
+    "ScenarioError",
+    "Sensors",
     "Trace",
     "TraceError",
+    "Transient",
     "TransientEvents",
+    "Unit",
+    "Waypoint",
+    "make_dm_env",
+    "make_env",
+    "random_scenario",
+    "scenario_presets",
+    "simulate",
 ]

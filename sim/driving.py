@@ -70,7 +70,9 @@ class RouteController:
         wps = self.route.waypoints
         v_des, w_des = 0.0, 0.0
         if contact and self.backoff_left <= 0.0:
+            # Bumper reflex: brake at once (the motors' torque limit sets the deceleration), then reverse.
             self.backoff_left = BACKOFF_TIME
+            self.v_cmd = 0.0
             self.contacts.append(t)
         if self.backoff_left > 0.0:
             self.backoff_left -= dt

@@ -21,7 +21,7 @@ from sim.world import World
 CONTROL_STEPS = 16
 """Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
 
-SKID_TRACK_FACTOR = 1.6
+SKID_TRACK_FACTOR = 3.2
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
 
 _CONTROL_SPEC = int(
@@ -85,7 +85,11 @@ class Engine:
         self.side = np.array([-1.0 if ("left" in n) else 1.0 for n in names])
         self.forcings: list[FaultForcing] = make_forcings(scenario.faults, info, scenario.seed)
         self.ped_index = np.array([i for i, ob in enumerate(scenario.obstacles) if ob.kind == "pedestrian"])
-        self.ped_mocap = np.asarray(world.obstacle_mocap[self.ped_index], dtype=np.int64) if len(self.ped_index) else np.zeros(0, np.int64)
+        self.ped_mocap = (
+            np.asarray(world.obstacle_mocap[self.ped_index], dtype=np.int64)
+            if len(self.ped_index)
+            else np.zeros(0, np.int64)
+        )
         self.state = np.zeros(self.nstate)
         self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
@@ -143,7 +147,9 @@ class Engine:
 
     def _ped_view(self, control: np.ndarray) -> np.ndarray:
         k = control.shape[0]
-        return control[:, self._mocap0 : self._mocap0 + 3 * self.model.nmocap].reshape(k, self.model.nmocap, 3)
+        return control[:, self._mocap0 : self._mocap0 + 3 * self.model.nmocap].reshape(
+            k, self.model.nmocap, 3
+        )
 
     def _ensure_ped_track(self, n: int) -> None:
         """Pedestrian positions at every physics step up to n, computed in blocks (vectorised)."""

@@ -69,7 +69,16 @@ def contact_events(
             rel_v = base_linvel[before] - obstacle_vel[before, k]
             approach = max(0.0, float(-rel_v @ normal))
             rows.append(
-                (start * dt + dt, pos[start, k].copy(), normal, magnitude, approach, (stop - start) * dt, k, (start, stop))
+                (
+                    start * dt + dt,
+                    pos[start, k].copy(),
+                    normal,
+                    magnitude,
+                    approach,
+                    (stop - start) * dt,
+                    k,
+                    (start, stop),
+                )
             )
     rows.sort(key=lambda r: (r[0], r[6]))
     kinds = tuple(obstacles[r[6]].kind for r in rows)

@@ -174,8 +174,14 @@ class FaultForcing:
             xfrc[:, :3] += (rattle * s * LOOSE_RATTLE_FORCE * 0.5 * direction)[:, None] * lateral
         else:
             ripple = np.sin(self.gear_ratio * theta)
-            qfrc += on * s * (
-                -MOTOR_TORQUE_LOSS * motor_torque + MOTOR_RIPPLE * abs(motor_torque) * ripple - MOTOR_DRAG * omega
+            qfrc += (
+                on
+                * s
+                * (
+                    -MOTOR_TORQUE_LOSS * motor_torque
+                    + MOTOR_RIPPLE * abs(motor_torque) * ripple
+                    - MOTOR_DRAG * omega
+                )
             )
 
     def speed_factor(self, t: float) -> float:

@@ -82,7 +82,11 @@ def build_robot(unit: Unit) -> BuiltRobot:
     rng = np.random.default_rng([0x5EED, unit.unit_id])
     s = unit.variation
     names = wheel_names(unit.model)
-    radius = drive.wheel_radius * (1.0 + s * rng.uniform(-0.012, 0.012)) * (1.0 + s * rng.normal(0, 0.002, len(names)))
+    radius = (
+        drive.wheel_radius
+        * (1.0 + s * rng.uniform(-0.012, 0.012))
+        * (1.0 + s * rng.normal(0, 0.002, len(names)))
+    )
     gear = drive.gear_ratio * (1.0 + s * rng.uniform(-0.02, 0.02))
     mass_scale = 1.0 + s * rng.uniform(-0.05, 0.05)
     battery_shift = s * rng.uniform(-0.03, 0.03, size=2)
@@ -100,8 +104,14 @@ def build_robot(unit: Unit) -> BuiltRobot:
         g = model.find("geom", geom_name)
         g.mass = float(g.mass * mass_scale)
     battery = model.find("geom", "battery")
-    battery.pos = [float(battery_shift[0]), float(battery_shift[1]), battery.pos[2]]
-    site = {n: np.asarray(model.find("site", n).pos, dtype=np.float64) for n in ("imu", "mic_left", "mic_right")}
+    battery.pos = [
+        float(battery.pos[0] + battery_shift[0]),
+        float(battery.pos[1] + battery_shift[1]),
+        battery.pos[2],
+    ]
+    site = {
+        n: np.asarray(model.find("site", n).pos, dtype=np.float64) for n in ("imu", "mic_left", "mic_right")
+    }
     info = RobotInfo(
         model=unit.model,
         unit_id=unit.unit_id,
@@ -120,4 +130,3 @@ def build_robot(unit: Unit) -> BuiltRobot:
         wheelbase=drive.wheelbase,
     )
     return BuiltRobot(model=model, info=info, torque_limit=float(torque_limit))
-

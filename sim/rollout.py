@@ -51,7 +51,11 @@ def run_route(engine: Engine, scenario: Scenario) -> np.ndarray:
     for start in range(0, n, CONTROL_STEPS):
         k = min(CONTROL_STEPS, n - start)
         sd = engine.sensordata
-        pose = (float(sd[sl.base_pos]), float(sd[sl.base_pos + 1]), yaw_of(sd[sl.base_quat : sl.base_quat + 4]))
+        pose = (
+            float(sd[sl.base_pos]),
+            float(sd[sl.base_pos + 1]),
+            yaw_of(sd[sl.base_quat : sl.base_quat + 4]),
+        )
         contact = bool(start > 0 and (out[prev:start, found_cols] > 0).any())
         targets = sd[pos_cols].reshape(k_obs, 2)
         v, w = controller.command(engine.time, pose, contact, targets, period)
@@ -72,7 +76,9 @@ def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray, dt: float) 
         return np.ascontiguousarray(sd[:, start : start + width])
 
     base_linvel = cols(sl.base_linvel, 3)
-    imu = imu_samples(time, cols(sl.acc, 3), cols(sl.base_angvel, 3), cols(sl.vel, 3), scenario.sensors, scenario.seed)
+    imu = imu_samples(
+        time, cols(sl.acc, 3), cols(sl.base_angvel, 3), cols(sl.vel, 3), scenario.sensors, scenario.seed
+    )
     ob_pos = cols(sl.obstacle_pos, 3 * k).reshape(n, k, 3)
     ob_vel = np.gradient(ob_pos, dt, axis=0) if n > 1 else np.zeros_like(ob_pos)
     hits = cols(sl.obstacle_contact, 7 * k).reshape(n, k, 7)

@@ -46,8 +46,8 @@ SURFACES: dict[str, Surface] = {
     "carpet": Surface(0.95, 0.0, 0.0, (0.02, 1.0)),
     "concrete": Surface(0.85, 0.0, 0.0, (0.008, 1.0)),
     "asphalt": Surface(0.9, 0.0, 0.0, (0.01, 1.0)),
-    "gravel": Surface(0.7, 0.006, 0.04, (0.012, 1.0)),
-    "grass": Surface(0.6, 0.005, 0.12, (0.025, 1.0)),
+    "gravel": Surface(0.7, 0.005, 0.1, (0.012, 1.0)),
+    "grass": Surface(0.6, 0.006, 0.2, (0.025, 1.0)),
 }
 """Floor surfaces: friction, heightfield roughness and contact softness."""
 
@@ -183,8 +183,11 @@ def build_world(scenario: Scenario) -> World:
     info = dataclasses.replace(robot.info, mass=float(model.body_subtreemass[base_id]))
     records = tuple(
         ObstacleRecord(
-            kind=ob.kind, material=ob.material, position=np.array([ob.x, ob.y, ob.size[2]]),
-            size=np.asarray(ob.size, dtype=np.float64), yaw=float(ob.yaw),
+            kind=ob.kind,
+            material=ob.material,
+            position=np.array([ob.x, ob.y, ob.size[2]]),
+            size=np.asarray(ob.size, dtype=np.float64),
+            yaw=float(ob.yaw),
         )  # fmt: skip
         for ob in obstacles
     )
@@ -224,11 +227,13 @@ def _add_floor(arena: mjcf.RootElement, scenario: Scenario, surface: Surface) ->
             solref=list(surface.solref), rgba=[0.55, 0.55, 0.5, 1],
         )  # fmt: skip
         return None
-    spacing = max(0.04, 2 * max(hx, hy) / 500)
+    spacing = max(0.1, 2 * max(hx, hy) / 400)
     ncol = int(np.ceil(2 * (hx + 1) / spacing)) + 1
     nrow = int(np.ceil(2 * (hy + 1) / spacing)) + 1
     rng = np.random.default_rng([scenario.seed, 0xF100])
-    field = ndimage.gaussian_filter(rng.standard_normal((nrow, ncol)), surface.correlation / spacing, mode="wrap")
+    field = ndimage.gaussian_filter(
+        rng.standard_normal((nrow, ncol)), surface.correlation / spacing, mode="wrap"
+    )
     field *= surface.roughness / max(float(field.std()), 1e-12)
     top = 6 * surface.roughness
     data = np.clip((field + 3 * surface.roughness) / top, 0.0, 1.0)
@@ -275,7 +280,14 @@ def _add_obstacle(arena: mjcf.RootElement, i: int, ob: Obstacle) -> mjcf.Element
     body = arena.worldbody.add("body", name=f"obstacle_{i}", pos=[ob.x, ob.y, sz], quat=quat)
     if ob.kind in OBSTACLE_MASS:
         body.add("freejoint")
-        body.add("geom", type="box", size=[sx, sy, sz], mass=OBSTACLE_MASS[ob.kind], rgba=rgba, friction=[0.5, 0.01, 0.001])
+        body.add(
+            "geom",
+            type="box",
+            size=[sx, sy, sz],
+            mass=OBSTACLE_MASS[ob.kind],
+            rgba=rgba,
+            friction=[0.5, 0.01, 0.001],
+        )
     elif ob.kind == "chair":
         leg = 0.012
         for dx in (-1, 1):
@@ -298,9 +310,25 @@ def _add_transient(
     name = f"transient_{i}"
     rgba = [0.3, 0.3, 0.3, 1]
     if kind == "seam":
-        parent.add("geom", name=name, type="box", size=[length / 2, 0.01, h / 2], pos=[x, y, h / 2], quat=quat, rgba=rgba)
+        parent.add(
+            "geom",
+            name=name,
+            type="box",
+            size=[length / 2, 0.01, h / 2],
+            pos=[x, y, h / 2],
+            quat=quat,
+            rgba=rgba,
+        )
     elif kind == "threshold":
-        parent.add("geom", name=name, type="box", size=[length / 2, 0.04, h / 2], pos=[x, y, h / 2], quat=quat, rgba=rgba)
+        parent.add(
+            "geom",
+            name=name,
+            type="box",
+            size=[length / 2, 0.04, h / 2],
+            pos=[x, y, h / 2],
+            quat=quat,
+            rgba=rgba,
+        )
     elif kind == "cable":
         half = length / 2
         c, s = np.cos(yaw), np.sin(yaw)

@@ -1,0 +1,487 @@
+"""Randomised, valid scenarios (nominal, collision, fault) and the named presets built on them.
+
+Everything is drawn from one `np.random.Generator` seeded by the caller's seed, so the same arguments
+give the same scenario. Routes wander inside the arena through free space (checked against every
+obstacle with a clearance margin) and loop, so long episodes keep driving sensibly; benign transients
+are laid across the route's legs so that nominal driving meets them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from sim import vocab
+from sim.scenario import (
+    OBSTACLE_SIZES,
+    Fault,
+    Obstacle,
+    Route,
+    Scenario,
+    ScenarioError,
+    Transient,
+    Unit,
+    Waypoint,
+    wheel_names,
+)
+
+CATEGORIES: tuple[str, ...] = ("nominal", "collision", "fault")
+"""Scenario categories of `random_scenario`."""
+
+MAX_LEG = 4.5
+"""Longest leg of a wandering route, m (shorter legs mean more turns)."""
+
+CLEARANCE = 0.75
+"""Free space kept between a nominal route and any obstacle, m."""
+
+_CLUTTER = {
+    "indoor": ("desk", "chair", "box", "luggage", "door", "wall"),
+    "outdoor": ("curb", "box", "luggage", "wall", "chair"),
+}
+_TRANSIENTS = {
+    "indoor": ("seam", "threshold", "cable", "debris"),
+    "outdoor": ("seam", "kerb_ramp", "cable", "debris"),
+}
+
+
+def _box_distance(p: np.ndarray, ob: Obstacle) -> np.ndarray:
+    """Distance from points p (..., 2) to the obstacle's footprint (a rotated rectangle)."""
+    c, s = math.cos(ob.yaw), math.sin(ob.yaw)
+    rel = p - np.array([ob.x, ob.y])
+    local = np.stack([rel[..., 0] * c + rel[..., 1] * s, -rel[..., 0] * s + rel[..., 1] * c], axis=-1)
+    excess = np.maximum(np.abs(local) - np.array(ob.size[:2]), 0.0)
+    return np.asarray(np.linalg.norm(excess, axis=-1))
+
+
+def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
+    """Smallest distance from any of `points` (n, 2) to any obstacle (pedestrian paths included)."""
+    best = math.inf
+    for ob in obstacles:
+        d = _box_distance(points, ob)
+        best = min(best, float(d.min()))
+        for q in ob.path:
+            best = min(best, float(np.linalg.norm(points - np.array(q), axis=-1).min()) - ob.size[0])
+        if ob.path:
+            line = _sample_segment(np.array([ob.x, ob.y]), np.array(ob.path[-1]), 0.2)
+            for lp in line:
+                best = min(best, float(np.linalg.norm(points - lp, axis=-1).min()) - ob.size[0])
+    return best
+
+
+def _sample_segment(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+    n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+    u = np.linspace(0.0, 1.0, n)[:, None]
+    return np.asarray(a + u * (b - a))
+
+
+def _segment_clear(a: np.ndarray, b: np.ndarray, obstacles: list[Obstacle], margin: float) -> bool:
+    return _clearance(_sample_segment(a, b, 0.1), obstacles) > margin
+
+
+def _check_args(
+    category: str,
+    duration: float,
+    environment: str | None,
+    obstacle_kind: str | None,
+    fault_kind: str | None,
+    wheel: int | None,
+    severity: tuple[float, float],
+    transient_density: float,
+    robot_model: str,
+) -> None:
+    def bad(name: str, value: object, allowed: str) -> ScenarioError:
+        return ScenarioError(f"{name} = {value!r} is invalid; allowed: {allowed}")
+
+    if category not in CATEGORIES:
+        raise bad("category", category, ", ".join(CATEGORIES))
+    if not (isinstance(duration, int | float) and math.isfinite(duration) and 2.0 <= duration <= 3600.0):
+        raise bad("duration", duration, "2 .. 3600 s")
+    if environment is not None and environment not in vocab.ENVIRONMENTS:
+        raise bad("environment", environment, ", ".join(vocab.ENVIRONMENTS))
+    if obstacle_kind is not None and obstacle_kind not in vocab.OBSTACLE_KINDS:
+        raise bad("obstacle_kind", obstacle_kind, ", ".join(vocab.OBSTACLE_KINDS))
+    if fault_kind is not None and fault_kind not in vocab.FAULT_KINDS:
+        raise bad("fault_kind", fault_kind, ", ".join(vocab.FAULT_KINDS))
+    if robot_model not in ("skid4", "diff2"):
+        raise bad("robot_model", robot_model, "skid4, diff2")
+    n_wheels = len(wheel_names(robot_model))
+    if wheel is not None and (not isinstance(wheel, int) or not 0 <= wheel < n_wheels):
+        raise bad("wheel", wheel, f"0 .. {n_wheels - 1} for {robot_model}")
+    lo, hi = severity
+    if not (0.0 <= lo <= hi <= 1.0):
+        raise bad("severity", severity, "(low, high) with 0 <= low <= high <= 1")
+    if not (math.isfinite(transient_density) and 0.0 <= transient_density <= 10.0):
+        raise bad("transient_density", transient_density, "0 .. 10")
+
+
+def random_scenario(
+    seed: int,
+    category: str,
+    *,
+    duration: float,
+    environment: str | None = None,
+    obstacle_kind: str | None = None,
+    fault_kind: str | None = None,
+    wheel: int | None = None,
+    severity: tuple[float, float] = (0.3, 1.0),
+    unit_id: int | None = None,
+    transient_density: float = 1.0,
+    robot_model: str = "skid4",
+) -> Scenario:
+    """A valid randomised scenario of a category; every draw depends only on the arguments.
+
+    Args:
+        seed: seed of every draw (also the scenario's seed).
+        category: `nominal` (route with turns, stops and benign transients, avoiding obstacles),
+            `collision` (nominal driving plus rams into an obstacle of `obstacle_kind`), or `fault`
+            (nominal driving with one fault of `fault_kind` whose onset is inside the episode).
+        duration: episode length, s.
+        environment: indoor or outdoor (random when None; outdoor for a curb).
+        obstacle_kind: kind to collide with (collision; random when None).
+        fault_kind: fault kind (fault; random when None).
+        wheel: faulty wheel (random when None).
+        severity: (low, high) range of the fault severity.
+        unit_id: robot unit (random 0..7 when None).
+        transient_density: transients per 8 s of driving (0 = none).
+        robot_model: skid4 or diff2.
+    """
+    _check_args(
+        category,
+        duration,
+        environment,
+        obstacle_kind,
+        fault_kind,
+        wheel,
+        severity,
+        transient_density,
+        robot_model,
+    )
+    if not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"seed = {seed!r} is invalid; allowed: an integer >= 0")
+    rng = np.random.default_rng([seed, CATEGORIES.index(category), 0x5CE])
+    if category == "collision" and obstacle_kind is None:
+        obstacle_kind = str(rng.choice(vocab.OBSTACLE_KINDS))
+    if environment is None:
+        environment = "outdoor" if obstacle_kind == "curb" else str(rng.choice(vocab.ENVIRONMENTS))
+    surfaces = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
+    surface = str(rng.choice(surfaces))
+    if environment == "indoor":
+        arena = (float(rng.uniform(5.0, 7.5)), float(rng.uniform(4.0, 5.5)))
+    else:
+        arena = (float(rng.uniform(8.0, 12.0)), float(rng.uniform(6.5, 9.0)))
+    unit = Unit(model=robot_model, unit_id=int(rng.integers(0, 8)) if unit_id is None else unit_id)
+
+    obstacles: list[Obstacle] = []
+    if category == "collision":
+        assert obstacle_kind is not None
+        _place(rng, obstacle_kind, arena, obstacles, target=True)
+    for kind in rng.choice(_CLUTTER[environment], size=int(rng.integers(3, 7))):
+        _place(rng, str(kind), arena, obstacles, target=False)
+
+    waypoints, start = _wander(rng, arena, obstacles, duration)
+    if category == "collision":
+        n_hits = 1 + min(3, int(duration // 60.0))
+        waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_hits, start, duration)
+    route = Route(
+        start=start,
+        waypoints=tuple(waypoints),
+        accel=float(rng.uniform(0.5, 1.2)),
+        yaw_rate=float(rng.uniform(0.8, 1.5)),
+        loop=True,
+    )
+    transients = _transients(rng, environment, arena, start, waypoints, duration, transient_density)
+    faults: tuple[Fault, ...] = ()
+    if category == "fault":
+        kind = fault_kind if fault_kind is not None else str(rng.choice(vocab.FAULT_KINDS))
+        n_wheels = len(wheel_names(robot_model))
+        which = wheel if wheel is not None else int(rng.integers(0, n_wheels))
+        sev = float(rng.uniform(severity[0], severity[1]))
+        onset = float(rng.uniform(0.15, 0.5) * duration)
+        faults = (Fault(kind=kind, wheel=which, severity=sev, onset=onset),)
+    name = f"{category}_{environment}" + (f"_{obstacle_kind}" if category == "collision" else "")
+    if faults:
+        name += f"_{faults[0].kind}_w{faults[0].wheel}"
+    return Scenario(
+        name=name,
+        seed=seed,
+        duration=float(duration),
+        environment=environment,
+        surface=surface,
+        arena=arena,
+        robot=unit,
+        route=route,
+        obstacles=tuple(obstacles),
+        transients=transients,
+        faults=faults,
+        category=category,
+    )
+
+
+def _place(
+    rng: np.random.Generator, kind: str, arena: tuple[float, float], obstacles: list[Obstacle], target: bool
+) -> None:
+    """Place one obstacle of `kind` without overlapping the others (gives up quietly if crowded)."""
+    hx, hy = arena
+    size = OBSTACLE_SIZES[kind]
+    for _ in range(60):
+        if kind == "door":
+            side = int(rng.integers(0, 4))
+            along = float(rng.uniform(-0.6, 0.6))
+            if side < 2:
+                x = (hx - size[0]) * (1 if side == 0 else -1)
+                y = along * (hy - 1.0)
+                yaw = 0.0
+            else:
+                x = along * (hx - 1.0)
+                y = (hy - size[0]) * (1 if side == 2 else -1)
+                yaw = math.pi / 2
+        else:
+            margin = max(size[0], size[1]) + 1.6
+            x = float(rng.uniform(-hx + margin, hx - margin))
+            y = float(rng.uniform(-hy + margin, hy - margin))
+            yaw = (
+                float(rng.uniform(-math.pi, math.pi)) if kind in ("box", "luggage", "chair", "desk") else 0.0
+            )
+            if kind in ("wall", "curb"):
+                yaw = float(rng.choice([0.0, math.pi / 2]))
+        path: tuple[tuple[float, float], ...] = ()
+        walk = 1.0
+        if kind == "pedestrian":
+            heading = float(rng.uniform(-math.pi, math.pi))
+            length = float(rng.uniform(1.5, 3.0))
+            end = (x + length * math.cos(heading), y + length * math.sin(heading))
+            if abs(end[0]) > hx - 1.0 or abs(end[1]) > hy - 1.0:
+                continue
+            path = (end,)
+            walk = float(rng.uniform(0.3, 0.8))
+        candidate = Obstacle(kind, x, y, yaw, size, path, walk)
+        probe = _sample_segment(np.array([x, y]), np.array(path[-1] if path else (x, y)), 0.2)
+        spacing = 1.9 if target else 1.4
+        if obstacles and _clearance(probe, obstacles) < spacing + max(size[:2]):
+            continue
+        obstacles.append(candidate)
+        return
+
+
+def _free_point(
+    rng: np.random.Generator, arena: tuple[float, float], obstacles: list[Obstacle], margin: float = 0.9
+) -> np.ndarray | None:
+    hx, hy = arena
+    for _ in range(80):
+        p = np.array([rng.uniform(-hx + margin, hx - margin), rng.uniform(-hy + margin, hy - margin)])
+        if _clearance(p[None], obstacles) > CLEARANCE + 0.1:
+            return p
+    return None
+
+
+def _wander(
+    rng: np.random.Generator, arena: tuple[float, float], obstacles: list[Obstacle], duration: float
+) -> tuple[list[Waypoint], tuple[float, float, float]]:
+    """A looping route through free space long enough for `duration`."""
+    start = _free_point(rng, arena, obstacles)
+    if start is None:
+        raise ScenarioError("arena too crowded: no free start point (reduce obstacles)")
+    points = [start]
+    waypoints: list[Waypoint] = []
+    planned = 0.0
+    attempts = 0
+    while (
+        planned < duration + 10.0 or not _segment_clear(points[-1], start, obstacles, CLEARANCE)
+    ) and attempts < 600:
+        attempts += 1
+        p = _free_point(rng, arena, obstacles)
+        if p is None or not 1.2 <= np.linalg.norm(p - points[-1]) <= MAX_LEG:
+            continue
+        if not _segment_clear(points[-1], p, obstacles, CLEARANCE):
+            continue
+        speed = float(rng.uniform(0.3, 1.4))
+        dwell = float(rng.uniform(0.5, 4.0)) if rng.random() < 0.25 else 0.0
+        waypoints.append(Waypoint(float(p[0]), float(p[1]), speed, dwell))
+        planned += float(np.linalg.norm(p - points[-1])) / speed + dwell + 1.5
+        points.append(p)
+        if len(waypoints) > 400:
+            break
+    if not waypoints:
+        raise ScenarioError("arena too crowded: no route found (reduce obstacles)")
+    if not _segment_clear(points[-1], start, obstacles, CLEARANCE):
+        waypoints.append(Waypoint(float(points[-2][0]), float(points[-2][1]), 0.6, 0.0))
+        for q in reversed(points[1:-2]):
+            waypoints.append(Waypoint(float(q[0]), float(q[1]), 0.8, 0.0))
+    yaw = math.atan2(points[1][1] - start[1], points[1][0] - start[0]) if len(points) > 1 else 0.0
+    return waypoints, (float(start[0]), float(start[1]), yaw + float(rng.uniform(-0.5, 0.5)))
+
+
+def _insert_rams(
+    rng: np.random.Generator,
+    waypoints: list[Waypoint],
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+    n_hits: int,
+    start: tuple[float, float, float],
+    duration: float,
+) -> list[Waypoint]:
+    """Insert approach, ram and retreat legs towards obstacle 0 at chosen speeds and angles."""
+    target = obstacles[0]
+    others = obstacles[1:]
+    out = list(waypoints)
+    pts = np.array([(start[0], start[1])] + [(w.x, w.y) for w in out])
+    leg_time = 1.8 * np.linalg.norm(np.diff(pts, axis=0), axis=1) / np.array([w.speed for w in out])
+    arrive = np.concatenate([[0.0], np.cumsum(leg_time + np.array([w.dwell for w in out]) + 2.5)])
+    wanted = np.sort(rng.uniform(0.05, 0.6, size=n_hits)) * duration
+    inserted: list[tuple[int, list[Waypoint]]] = []
+    used: set[int] = set()
+    for t in wanted:
+        first = max(0, int(np.searchsorted(arrive, t)) - 1)
+        for slot in range(first, len(pts) - 1):
+            if slot in used:
+                continue
+            legs = _try_ram(rng, pts[slot], pts[slot + 1], obstacles, arena)
+            if legs is not None:
+                inserted.append((slot, legs))
+                used.add(slot)
+                break
+    for slot, legs in sorted(inserted, key=lambda x: -x[0]):
+        out[slot:slot] = legs
+    return out
+
+
+def _try_ram(
+    rng: np.random.Generator,
+    prev: np.ndarray,
+    nxt: np.ndarray,
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+) -> list[Waypoint] | None:
+    """Ram legs between route points prev and nxt whose connecting legs are clear, or None."""
+    for _ in range(15):
+        legs = _ram_legs(rng, obstacles[0], obstacles[1:], arena)
+        if legs is None:
+            continue
+        approach = np.array([legs[0].x, legs[0].y])
+        if _segment_clear(prev, approach, obstacles, 0.6) and _segment_clear(approach, nxt, obstacles, 0.6):
+            return legs
+    return None
+
+
+def _ram_legs(
+    rng: np.random.Generator, target: Obstacle, others: list[Obstacle], arena: tuple[float, float]
+) -> list[Waypoint] | None:
+    """Approach point, ram leg (speed and angle drawn) and retreat, or None if the draw is blocked."""
+    hx, hy = arena
+    speed = float(rng.uniform(0.4, 1.4))
+    angle = float(rng.uniform(-0.7, 0.7))
+    run = float(rng.uniform(2.0, 3.0))
+    c, s = math.cos(target.yaw), math.sin(target.yaw)
+    if target.kind == "pedestrian":
+        mid = (
+            np.array([target.x, target.y])
+            + np.array(target.path[-1] if target.path else (target.x, target.y))
+        ) / 2
+        heading = float(rng.uniform(-math.pi, math.pi))
+        face = mid
+        direction = np.array([math.cos(heading), math.sin(heading)])
+    else:
+        faces = [(1, 0), (-1, 0), (0, 1), (0, -1)]
+        fx, fy = faces[int(rng.integers(0, 4))]
+        if target.kind == "door":
+            # A door stands against a border wall; only its face looking into the arena can be hit.
+            if abs(target.yaw) < 1e-9:
+                normal_world = np.array([-math.copysign(1.0, target.x), 0.0])
+            else:
+                normal_world = np.array([0.0, -math.copysign(1.0, target.y)])
+            half_n, half_t = target.size[0], target.size[1]
+        else:
+            normal_world = np.array([fx * c - fy * s, fx * s + fy * c])
+            half_n = target.size[0] if fx != 0 else target.size[1]
+            half_t = target.size[1] if fx != 0 else target.size[0]
+        tangent = np.array([-normal_world[1], normal_world[0]])
+        face = (
+            np.array([target.x, target.y]) + normal_world * half_n + tangent * rng.uniform(-0.5, 0.5) * half_t
+        )
+        ca, sa = math.cos(angle), math.sin(angle)
+        inward = -normal_world
+        direction = np.array([inward[0] * ca - inward[1] * sa, inward[0] * sa + inward[1] * ca])
+    approach = face - direction * run
+    if abs(approach[0]) > hx - 0.8 or abs(approach[1]) > hy - 0.8:
+        return None
+    if others and not _segment_clear(approach, face, others, 0.5):
+        return None
+    aim = face + direction * 0.4
+    aim = np.clip(aim, [-hx + 0.31, -hy + 0.31], [hx - 0.31, hy - 0.31])
+    return [
+        Waypoint(float(approach[0]), float(approach[1]), 0.7, float(rng.uniform(0.3, 1.0))),
+        Waypoint(float(aim[0]), float(aim[1]), speed, 0.0, ram=0),
+        Waypoint(float(approach[0]), float(approach[1]), 0.5, 0.0),
+    ]
+
+
+def _transients(
+    rng: np.random.Generator,
+    environment: str,
+    arena: tuple[float, float],
+    start: tuple[float, float, float],
+    waypoints: list[Waypoint],
+    duration: float,
+    density: float,
+) -> tuple[Transient, ...]:
+    """Benign transients laid across the route's legs (so the wheels roll over them)."""
+    if density <= 0:
+        return ()
+    hx, hy = arena
+    pts = np.array([(start[0], start[1])] + [(w.x, w.y) for w in waypoints if w.ram < 0])
+    legs = [(pts[i], pts[i + 1]) for i in range(len(pts) - 1)]
+    lengths = np.array([np.linalg.norm(b - a) for a, b in legs])
+    usable = lengths > 1.0
+    if not usable.any():
+        return ()
+    weights = np.where(usable, lengths, 0.0)
+    weights = weights / weights.sum()
+    count = max(2, round(density * duration / 8.0))
+    count = min(count, 120)
+    out: list[Transient] = []
+    for _ in range(count):
+        i = int(rng.choice(len(legs), p=weights))
+        a, b = legs[i]
+        u = float(rng.uniform(0.2, 0.8))
+        p = a + u * (b - a)
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        kind = str(rng.choice(_TRANSIENTS[environment]))
+        yaw = heading + math.pi / 2 + float(rng.uniform(-0.35, 0.35))
+        length = float(rng.uniform(0.9, 2.5))
+        # keep the strip's ends inside the arena
+        ends = np.abs(np.array([math.cos(yaw), math.sin(yaw)])) * length / 2
+        room = np.array([hx - 0.05, hy - 0.05]) - np.abs(p)
+        scale = float(np.min(np.where(ends > 0, room / np.maximum(ends, 1e-9), np.inf)))
+        length = max(0.3, length * min(1.0, scale))
+        out.append(Transient(kind, float(p[0]), float(p[1]), float(yaw), length))
+    return tuple(out)
+
+
+PRESET_DURATION = 40.0
+"""Episode length of the named presets, s."""
+
+
+def scenario_presets() -> dict[str, Callable[[int], Scenario]]:
+    """Named scenario factories (name -> factory taking a seed)."""
+    presets: dict[str, Callable[[int], Scenario]] = {}
+
+    def make(name: str, category: str, **kwargs: object) -> Callable[[int], Scenario]:
+        def factory(seed: int) -> Scenario:
+            sc = random_scenario(seed, category, duration=PRESET_DURATION, **kwargs)  # type: ignore[arg-type]
+            return sc.replace(name=name)
+
+        factory.__doc__ = (
+            f"Preset {name}: {category} scenario ({', '.join(f'{k}={v}' for k, v in kwargs.items())})."
+        )
+        return factory
+
+    presets["nominal_indoor"] = make("nominal_indoor", "nominal", environment="indoor")
+    presets["nominal_outdoor"] = make("nominal_outdoor", "nominal", environment="outdoor")
+    presets["nominal_diff2"] = make("nominal_diff2", "nominal", environment="indoor", robot_model="diff2")
+    for kind in vocab.OBSTACLE_KINDS:
+        presets[f"collision_{kind}"] = make(f"collision_{kind}", "collision", obstacle_kind=kind)
+    for kind in vocab.FAULT_KINDS:
+        presets[f"fault_{kind}"] = make(f"fault_{kind}", "fault", fault_kind=kind)
+    return presets

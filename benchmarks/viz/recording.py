@@ -14,7 +14,7 @@ from benchmarks.viz.blueprint import build_blueprint
 from benchmarks.viz.config import TIMELINE, VizConfig
 from benchmarks.viz.events import detection_events, log_events, trace_events
 from benchmarks.viz.scene import log_scene
-from benchmarks.viz.scoring import EpisodeScores, score_episode, window_starts
+from benchmarks.viz.scoring import EpisodeScores, episode_duration, score_episode, window_starts
 from benchmarks.viz.series import (
     episode_spectrogram,
     log_audio,
@@ -24,7 +24,7 @@ from benchmarks.viz.series import (
     log_truth,
     log_wheel_speeds,
 )
-from msvdd.contract import Detector
+from msvdd.contract import WINDOW_S, Detector
 from sim.trace import Trace
 
 APPLICATION_ID = "msvdd-bench"
@@ -86,7 +86,7 @@ def log_recording(
     log_wheel_speeds(rec, trace, config)
     log_audio(rec, episode, config)
     spec = episode_spectrogram(episode, config)
-    ends = scores.end_s if scores is not None else window_starts(episode.meta.duration_s, hop_s) + 2.0
+    ends = scores.end_s if scores is not None else window_starts(episode_duration(episode), hop_s) + WINDOW_S
     log_spectrogram(rec, spec, ends, config)
     log_truth(rec, episode, trace.robot.wheel_names)
     events = trace_events(trace)

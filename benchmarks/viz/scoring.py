@@ -44,6 +44,11 @@ def window_starts(duration_s: float, hop_s: float) -> np.ndarray:
     return np.arange(max(n, 0)) * hop_s
 
 
+def episode_duration(episode: Episode) -> float:
+    """Length covered by both the audio and the IMU, s."""
+    return min(episode.audio.shape[0] / float(episode.audio_rate), episode.imu_vel_z.shape[0] / IMU_RATE)
+
+
 def score_episode(
     episode: Episode, detector: Detector, method: str, hop_s: float = 0.5, model_dir: Path | None = None
 ) -> EpisodeScores:
@@ -61,7 +66,7 @@ def score_episode(
             model folder and the episode).
     """
     audio4410 = preprocess.decimate_audio(episode.audio, rate=float(episode.audio_rate))
-    duration = min(audio4410.shape[0] / AUDIO_RATE, episode.imu_vel_z.shape[0] / IMU_RATE)
+    duration = min(audio4410.shape[0] / AUDIO_RATE, episode_duration(episode))
     starts = window_starts(duration, hop_s)
     scores = np.zeros(starts.size, dtype=np.float64)
     where = f"model {model_dir or method} on episode {episode.path}"

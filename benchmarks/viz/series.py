@@ -4,8 +4,8 @@ Entity layout:
 - `signals/imu/vel_z`, `signals/imu/acc` (x, y, z), `signals/imu/gyro` (x, y, z): every IMU sample;
 - `signals/wheels/speed`: one series per wheel at the display rate;
 - `signals/audio/left`, `signals/audio/right`: min and max of each ~1 ms block;
-- `spectrogram/episode`: the whole episode's spectrogram (static image, time left to right, high bands
-  on top) and `spectrogram/episode/cursor`: the current time drawn over it;
+- `spectrogram/episode/image`: the whole episode's spectrogram (static image, time left to right, high
+  bands on top, rows stretched to a readable aspect) and `.../image/cursor`: the current time over it;
 - `spectrogram/window`: the last 2 s (what a detector scoring now hears), at every window end;
 - `truth/label`: ground-truth label index per IMU sample (0 normal, 1 collision, 2 mechanical);
 - `states/truth`, `states/detector`: the same as lanes in a state timeline;
@@ -28,6 +28,9 @@ from benchmarks.viz.signals import band_spectrogram, colorize_db, display_indice
 from msvdd.contract import WINDOW_S
 from sim.trace import Trace
 from sim.vocab import LABELS, MECHANICAL, NORMAL, SUB_KINDS
+
+EPISODE_ASPECT = 4.0
+"""Width : height the whole-episode spectrogram is stretched to (at least), for a readable strip."""
 
 
 def _times(t: np.ndarray) -> rr.TimeColumn:
@@ -77,6 +80,7 @@ def envelope_block(audio_rate: float, config: VizConfig) -> int:
 def log_audio(rec: rr.RecordingStream, episode: Episode, config: VizConfig) -> None:
     """Both microphones as a min/max envelope (one row per block, at the block's start time)."""
     block = envelope_block(episode.audio_rate, config)
+    colours = {"left": (70, 110, 220, 255), "right": (60, 170, 110, 255)}
     for channel, name in enumerate(("left", "right")):
         mins, maxs = minmax_envelope(episode.audio[:, channel], block)
         t = np.arange(mins.size) * (block / episode.audio_rate)
@@ -85,7 +89,7 @@ def log_audio(rec: rr.RecordingStream, episode: Episode, config: VizConfig) -> N
             indexes=[_times(t)],
             columns=rr.Scalars.columns(scalars=np.stack([mins, maxs], axis=1)),
         )
-        _style(rec, f"signals/audio/{name}", [f"{name} min", f"{name} max"], [(90, 90, 200, 255)] * 2)
+        _style(rec, f"signals/audio/{name}", [f"{name} min", f"{name} max"], [colours[name]] * 2)
 
 
 @dataclass(frozen=True)
@@ -126,7 +130,10 @@ def log_spectrogram(
 ) -> None:
     """The whole-episode image with a moving cursor, and the last-2-s image at each window end."""
     bands, frames, _ = spec.image.shape
-    rec.log("spectrogram/episode", rr.Image(spec.image, color_model="RGB"), static=True)
+    # A minute is thousands of columns but ~100 bands: stretch the rows so the strip reads at ~4:1.
+    stretch = max(1.0, frames / (EPISODE_ASPECT * bands))
+    rec.log("spectrogram/episode/image", rr.Transform3D(scale=[1.0, stretch, 1.0]), static=True)
+    rec.log("spectrogram/episode/image", rr.Image(spec.image, color_model="RGB"), static=True)
     hop = config.spectrogram_hop_s
     t0 = float(spec.frame_times[0]) if frames else 0.0
     end = float(spec.frame_times[-1]) + hop if frames else 0.0
@@ -134,7 +141,7 @@ def log_spectrogram(
     x = (cursor_t - t0) / hop + 0.5
     strips = np.stack([np.stack([x, np.zeros_like(x)], 1), np.stack([x, np.full_like(x, bands)], 1)], axis=1)
     rec.send_columns(
-        "spectrogram/episode/cursor",
+        "spectrogram/episode/image/cursor",
         indexes=[_times(cursor_t)],
         columns=rr.LineStrips2D.columns(
             strips=list(strips), colors=np.tile(palette.CURSOR, (x.size, 1)).astype(np.uint8)

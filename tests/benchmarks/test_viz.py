@@ -177,7 +177,8 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     assert rows["/world/obstacles:Boxes3D:centers"] == display_indices(trace.imu_time, cfg.pose_rate_hz).size
     assert rows["/states/truth:StateChange:state"] == 5  # normal, collision, normal, mechanical, normal
     assert rows["/spectrogram/window:Image:buffer"] == n_windows
-    assert "static /spectrogram/episode:Image:buffer" in rows
+    assert "static /spectrogram/episode/image:Image:buffer" in rows
+    assert rows["/spectrogram/episode/image/cursor:LineStrips2D:strips"] == 60  # 20 Hz over 3 s
     assert rows["/audio:AssetAudio:blob"] == 1
     # collision + transient + fault onset + fault end + detection edges
     assert rows["/events:TextLog:text"] >= 4

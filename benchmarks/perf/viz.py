@@ -1,0 +1,57 @@
+"""Speed of `msvdd-bench viz`: logging one generated episode (with a detector's scores) to a .rrd file."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.dataset import EpisodeSpec, build_episode
+from benchmarks.episode import read_episode
+from benchmarks.methods import make, save_detector
+from benchmarks.perf.base import PerfStage
+from msvdd import preprocess
+
+
+def _measure(quick: bool) -> dict[str, float]:
+    duration = 10.0 if quick else 60.0
+    spec = EpisodeSpec("perf-fault", "fault", "test", 4321, 0, 6.0, duration, "indoor", None, "bearing", 1,
+                       (0.5, 1.0), 1.0)  # fmt: skip
+    from benchmarks.viz import log_episode
+
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        build_episode(spec, root / "data")
+        episode = read_episode(root / "data" / spec.episode_id)
+        windows = preprocess.frame_windows(
+            preprocess.decimate_audio(episode.audio), episode.imu_vel_z, np.arange(4) * 0.5, imu6=episode.imu6
+        )
+        model = save_detector(make("audio-rms", seed=0, scale="tiny").fit(windows), "audio-rms", root / "m")
+        started = time.perf_counter()
+        plain = log_episode(root / "data", spec.episode_id, save=root / "plain.rrd")
+        plain_s = time.perf_counter() - started
+        started = time.perf_counter()
+        scored = log_episode(root / "data", spec.episode_id, model_dir=model, save=root / "scored.rrd")
+        scored_s = time.perf_counter() - started
+        assert plain is not None and scored is not None
+        size_mb = scored.stat().st_size / 1e6
+    return {
+        "viz_log_s": plain_s,
+        "viz_log_rtf": duration / plain_s,
+        "viz_scored_log_s": scored_s,
+        "viz_file_mb_per_min": size_mb * 60.0 / duration,
+    }
+
+
+STAGE = PerfStage(
+    name="viz",
+    measure=_measure,
+    describe={
+        "viz_log_s": "seconds to log one episode (60 s; 10 s with --quick) to a .rrd, no model; target < 5",
+        "viz_log_rtf": "episode seconds logged per second of wall time, no model",
+        "viz_scored_log_s": "the same with audio-rms scores every 0.5 s (read model, score, log)",
+        "viz_file_mb_per_min": ".rrd size per minute of episode with scores and embedded audio, MB",
+    },
+)

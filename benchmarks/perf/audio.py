@@ -1,0 +1,131 @@
+"""Audio stage speed: real-time factor of the full binaural mix at 44.1 kHz on one core."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from benchmarks.perf.base import PerfStage
+from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEvents
+
+
+def _robot() -> RobotInfo:
+    return RobotInfo(
+        model="skid4",
+        unit_id=0,
+        mass=12.0,
+        wheel_names=("front_left", "front_right", "back_left", "back_right"),
+        wheel_radius=np.full(4, 0.06),
+        wheel_pos_body=np.array(
+            [[0.15, 0.17, 0.0], [0.15, -0.17, 0.0], [-0.15, 0.17, 0.0], [-0.15, -0.17, 0.0]]
+        ),
+        mic_pos_body=np.array([[0.2, 0.1, 0.12], [0.2, -0.1, 0.12]]),
+        imu_pos_body=np.zeros(3),
+        gear_ratio=30.0,
+        pinion_teeth=12,
+        motor_pole_pairs=2,
+        pwm_hz=16000.0,
+        tread_blocks=24,
+        track=0.34,
+        wheelbase=0.3,
+    )
+
+
+def workload(duration: float, environment: str = "indoor") -> Trace:
+    """A driving trace with speed changes, collisions, benign transients and a bearing fault."""
+    dt = 0.002
+    t = np.arange(0.0, duration + dt / 2, dt)
+    n = t.size
+    omega = 10.0 + 4.0 * np.sin(2 * np.pi * 0.2 * t)
+    omega4 = np.stack([omega, omega * 1.02, omega, omega * 1.02], axis=1)
+    angle = np.concatenate([np.zeros((1, 4)), np.cumsum(0.5 * (omega4[1:] + omega4[:-1]) * dt, axis=0)])
+    torque = 0.05 + 0.1 * np.gradient(omega4, dt, axis=0) / 10.0
+    yaw = 0.1 * t
+    quat = np.stack([np.cos(yaw / 2), np.zeros(n), np.zeros(n), np.sin(yaw / 2)], axis=1)
+    robot = _robot()
+    k = max(int(duration / 4), 1)
+    rng = np.random.default_rng(0)
+    contacts = ContactEvents(
+        time=np.sort(rng.uniform(0, duration, k)),
+        position=np.tile([0.3, 0.0, 0.1], (k, 1)),
+        normal=np.tile([-1.0, 0, 0], (k, 1)),
+        impulse=rng.uniform(1, 5, k),
+        normal_speed=rng.uniform(0.2, 1, k),
+        duration=rng.uniform(0.01, 0.3, k),
+        obstacle_kind=("wall",) * k,
+        material=("plaster",) * k,
+    )
+    m = 2 * k
+    transients = TransientEvents(
+        time=np.sort(rng.uniform(0, duration, m)),
+        position=np.zeros((m, 3)),
+        wheel=rng.integers(0, 4, m),
+        impulse=rng.uniform(0.5, 3, m),
+        kind=("seam", "cable") * k,
+    )
+    imu_n = int(duration * 200) + 1
+    return Trace(
+        "perf",
+        0,
+        environment,
+        "concrete",
+        duration,
+        dt,
+        200.0,
+        robot,
+        np.array([5.0, 5.0]),
+        t,
+        angle,
+        omega4,
+        torque,
+        np.zeros((n, 3)),
+        quat,
+        np.zeros((n, 3)),
+        np.zeros((n, 3)),
+        np.broadcast_to(robot.mic_pos_body, (n, 2, 3)).copy(),
+        np.arange(imu_n) / 200.0,
+        np.zeros(imu_n),
+        np.zeros((imu_n, 3)),
+        np.zeros((imu_n, 3)),
+        contacts,
+        transients,
+        (FaultRecord("bearing", 1, 0.7, duration / 2, duration / 2, 3.57, 2100.0, 0.04),),
+        (),
+        np.zeros((imu_n, 0, 3)),
+        np.zeros(imu_n, np.int8),
+        np.zeros(imu_n, np.int16),
+        -np.ones(imu_n, np.int8),
+    )
+
+
+def _measure(quick: bool) -> dict[str, float]:
+    from synth_audio import AudioConfig, render
+
+    duration = 2.0 if quick else 20.0
+    repeats = 1 if quick else 3
+    figures: dict[str, float] = {}
+    for environment in ("indoor", "outdoor"):
+        trace = workload(duration, environment)
+        config = AudioConfig(sample_rate=44100)
+        render(trace, config, 0)  # warm the unit's reference level cache and the allocator
+        best = float("inf")
+        for r in range(repeats):
+            start = time.process_time()
+            render(trace, config, r)
+            best = min(best, time.process_time() - start)
+        figures[f"audio_rtf_{environment}"] = duration / max(best, 1e-9)
+    figures["audio_rtf"] = min(figures["audio_rtf_indoor"], figures["audio_rtf_outdoor"])
+    return figures
+
+
+STAGE = PerfStage(
+    name="audio",
+    measure=_measure,
+    describe={
+        "audio_rtf": "real-time factor of the full binaural mix at 44.1 kHz, one core, worst environment "
+        "(target >= 200)",
+        "audio_rtf_indoor": "same, indoor (HVAC, babble, doors, reverberation)",
+        "audio_rtf_outdoor": "same, outdoor (wind, traffic, birds)",
+    },
+)

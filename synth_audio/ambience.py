@@ -1,0 +1,204 @@
+"""Environment sound: indoor (HVAC, distant babble, doors in other rooms, room reverberation) and outdoor
+(wind with gusts, traffic, birds).
+
+Continuous beds are diffuse (partly coherent between the mics); events come from a direction in the world
+and are spatialised as plane waves for the robot's heading at that moment. Indoor events also feed a
+reverberation send, convolved later with `room_ir`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import butter, sosfilt
+
+from synth_audio.dsp import (
+    add_at,
+    block_ramp,
+    damped_modes,
+    frac_phase,
+    one_pole_lowpass,
+    shaped_noise,
+    white,
+)
+from synth_audio.spatial import plane_wave_gains, spatialize_into
+
+_BLOCK = 256
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What the ambience needs to know about the robot: microphones and heading over time."""
+
+    n: int
+    """Samples to render."""
+    sample_rate: int
+    """Sample rate, Hz."""
+    mic_body: np.ndarray
+    """(2, 3) microphone positions in the base frame, m."""
+    axes: np.ndarray
+    """(2, 3) microphone facing directions in the base frame."""
+    speed_of_sound: float
+    """m/s."""
+    world_to_body: Callable[[float], np.ndarray]
+    """Time -> (3, 3) rotation taking world vectors to the base frame."""
+
+
+def _diffuse(mono: np.ndarray, coherence: float, rng: np.random.Generator) -> np.ndarray:
+    """(2, n) diffuse-field version of a stationary mono bed: a shared part plus decorrelated parts."""
+    n = mono.size
+    shift = int(rng.integers(n // 4 + 1, n // 2 + 2)) if n > 8 else 0
+    shared = np.float32(np.sqrt(coherence))
+    own = np.float32(np.sqrt(1.0 - coherence))
+    return np.stack([shared * mono + own * np.roll(mono, shift), shared * mono + own * np.roll(mono, -shift)])
+
+
+def _slow_process(rng: np.random.Generator, n_ctrl: int, ctrl_rate: float, corner_hz: float) -> np.ndarray:
+    """Unit-variance low-pass Gaussian process at control rate (for gusts, phrases, traffic swells)."""
+    x = one_pole_lowpass(rng.standard_normal(n_ctrl + 64).astype(np.float32), corner_hz, int(ctrl_rate))
+    x = x[64:]
+    return (x - np.mean(x)) / max(float(np.std(x)), 1e-9)
+
+
+def _event_into(out: np.ndarray, scene: Scene, signal: np.ndarray, t: float, azimuth: float) -> None:
+    """Place a mono event at time t arriving from a world azimuth (horizontal plane wave)."""
+    direction = scene.world_to_body(t) @ np.array([np.cos(azimuth), np.sin(azimuth), 0.1])
+    delays, gains = plane_wave_gains(
+        direction, scene.mic_body, scene.axes, scene.sample_rate, scene.speed_of_sound
+    )
+    spatialize_into(out, signal, delays, gains, int(t * scene.sample_rate))
+
+
+def _event_times(rng: np.random.Generator, rate: float, duration: float) -> np.ndarray:
+    count = int(rng.poisson(rate * duration))
+    return np.sort(rng.uniform(0.0, duration, count))
+
+
+def _door(rng: np.random.Generator, sr: int) -> np.ndarray:
+    """A door closing in another room: a low panel thud, a latch click, muffled by the walls."""
+    length = int(0.6 * sr)
+    freqs = np.array([45.0, 92.0, 180.0, 410.0]) * rng.uniform(0.85, 1.15)
+    thud = damped_modes(freqs, np.array([0.3, 0.25, 0.15, 0.08]), np.array([1.0, 0.8, 0.5, 0.25]),
+                        rng.uniform(0, 6.28, 4), sr, length)  # fmt: skip
+    latch_at = int(rng.uniform(0.0, 0.03) * sr)
+    latch = damped_modes(np.array([1800.0, 3100.0]) * rng.uniform(0.9, 1.1), np.array([0.03, 0.02]),
+                         np.array([0.4, 0.25]), rng.uniform(0, 6.28, 2), sr, int(0.05 * sr))  # fmt: skip
+    add_at(thud, latch_at, latch)
+    return one_pole_lowpass(thud, 900.0, sr) * np.float32(rng.lognormal(0.0, 0.4))
+
+
+def _babble(scene: Scene, rng: np.random.Generator, talkers: int) -> np.ndarray:
+    """Mono distant speech-like babble through a wall: voiced buzz and noise under syllabic envelopes."""
+    n, sr = scene.n, scene.sample_rate
+    nb = -(-n // _BLOCK) + 1
+    ctrl = sr / _BLOCK
+    noise = shaped_noise(rng, n, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
+    out = np.zeros(n, dtype=np.float32)
+    for _ in range(talkers):
+        f0 = rng.uniform(95.0, 220.0) * np.exp(0.08 * _slow_process(rng, nb, ctrl, 3.0))
+        cycles = np.cumsum(f0 / ctrl)
+        buzz = frac_phase(cycles[None, :], _BLOCK, n)[0] * np.float32(2.0) - np.float32(1.0)
+        syllable = np.clip(_slow_process(rng, nb, ctrl, 4.5), 0.0, None)
+        phrase = (_slow_process(rng, nb, ctrl, 0.3) > rng.uniform(-0.6, 0.2)).astype(np.float64)
+        env = syllable * one_pole_lowpass(phrase.astype(np.float32), 8.0, int(ctrl)) * rng.uniform(0.5, 1.0)
+        mix = buzz * np.float32(0.6) + np.roll(noise, int(rng.integers(0, n))) * np.float32(0.5)
+        out += mix * block_ramp(env[None, :], _BLOCK, n)[0]
+    sos = butter(2, [150.0, 1200.0], btype="bandpass", fs=sr, output="sos")
+    return sosfilt(sos, out).astype(np.float32)
+
+
+def indoor(scene: Scene, rng: np.random.Generator, door_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """(2, n) dry indoor ambience and the (n,) mono reverberation send."""
+    n, sr = scene.n, scene.sample_rate
+    duration = n / sr
+    fan = shaped_noise(rng, n, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
+    nb = -(-n // _BLOCK) + 1
+    tb = np.arange(nb) * (_BLOCK / sr)
+    mains = 50.0 if rng.uniform() < 0.5 else 60.0
+    blade = rng.uniform(70.0, 120.0)
+    hum = np.zeros(n, dtype=np.float32)
+    for freq, amp in ((mains * 2, 0.08), (mains * 3, 0.04), (blade, 0.12)):
+        phase = frac_phase((freq * tb + rng.uniform())[None, :], _BLOCK, n)[0]
+        hum += np.float32(amp) * np.sin(np.float32(2 * np.pi) * phase)
+    bed = _diffuse(fan * np.float32(0.6) + hum, 0.3, rng)
+    babble = _babble(scene, rng, int(rng.integers(2, 5))) * np.float32(0.35)
+    send = babble.copy()
+    dry = bed
+    spatialize_into(dry, babble * np.float32(0.3), np.array([1.0, 1.0]), np.array([1.0, 1.0]))
+    for t in _event_times(rng, door_rate, duration):
+        door = _door(rng, sr) * np.float32(1.5)
+        _event_into(dry, scene, door * np.float32(0.4), float(t), float(rng.uniform(0, 2 * np.pi)))
+        add_at(send, int(t * sr), door)
+    return dry, send
+
+
+def _chirp(rng: np.random.Generator, sr: int) -> np.ndarray:
+    """One bird call: a short trill of frequency-modulated notes between 2 and 7 kHz."""
+    notes = int(rng.integers(2, 7))
+    note_len = rng.uniform(0.04, 0.15)
+    gap = rng.uniform(0.02, 0.08)
+    f_lo = min(rng.uniform(2000.0, 5000.0), 0.4 * sr)
+    f_hi = min(f_lo * rng.uniform(1.1, 1.6), 0.45 * sr)
+    m = int(note_len * sr)
+    t = np.arange(m) / m
+    freq = (
+        f_lo + (f_hi - f_lo) * (t if rng.uniform() < 0.5 else 1.0 - t) + 150.0 * np.sin(2 * np.pi * 18.0 * t)
+    )
+    note = (np.sin(2 * np.pi * np.cumsum(freq) / sr) * np.sin(np.pi * t) ** 2).astype(np.float32)
+    step = int((note_len + gap) * sr)
+    out = np.zeros(step * notes + m, dtype=np.float32)
+    for i in range(notes):
+        add_at(out, i * step, note * np.float32(rng.uniform(0.6, 1.0)))
+    return out
+
+
+def outdoor(scene: Scene, rng: np.random.Generator, bird_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """(2, n) outdoor ambience (no reverberation send: free field, the send is empty)."""
+    n, sr = scene.n, scene.sample_rate
+    duration = n / sr
+    nb = -(-n // _BLOCK) + 1
+    ctrl = sr / _BLOCK
+    gust = np.exp(0.7 * _slow_process(rng, nb, ctrl, 0.25)) * rng.uniform(0.6, 1.2)
+    gust_env = block_ramp(gust[None, :], _BLOCK, n)[0]
+    wind = shaped_noise(rng, n, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
+    shift = int(rng.integers(n // 4 + 1, n // 2 + 2)) if n > 8 else 0
+    out = np.stack([wind, np.roll(wind, shift)]) * (gust_env * np.float32(0.8))  # wind noise is incoherent
+    rustle = shaped_noise(rng, n, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
+    out += _diffuse(rustle * gust_env * np.float32(0.15), 0.4, rng)
+    rumble = shaped_noise(rng, n, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
+    swell = 0.6 + 0.4 * np.clip(_slow_process(rng, nb, ctrl, 0.05) + 1.0, 0.0, None)
+    for t in _event_times(rng, 0.08, duration):  # vehicles passing by
+        swell += rng.uniform(0.5, 1.5) * np.exp(
+            -0.5 * ((np.arange(nb) / ctrl - t) / rng.uniform(1.0, 2.5)) ** 2
+        )
+    out += _diffuse(rumble * block_ramp(swell[None, :], _BLOCK, n)[0] * np.float32(0.5), 0.7, rng)
+    for t in _event_times(rng, bird_rate, duration):
+        azimuth = float(rng.uniform(0, 2 * np.pi))
+        _event_into(out, scene, _chirp(rng, sr) * np.float32(rng.lognormal(-1.2, 0.5)), float(t), azimuth)
+    return out, np.zeros(0, dtype=np.float32)
+
+
+def room_ir(rt60: float, sample_rate: int, rng: np.random.Generator) -> np.ndarray:
+    """(2, L) decorrelated room impulse responses with the given RT60 (highs decay twice as fast).
+
+    Each channel has unit energy, a 4 ms pre-delay and a few early reflections.
+    """
+    length = int(min(1.1 * rt60, 2.5) * sample_rate) + 1
+    t = np.arange(length) / sample_rate
+    pre = int(0.004 * sample_rate)
+    irs = []
+    for _ in range(2):
+        noise = white(rng, length)
+        low = one_pole_lowpass(noise, 1500.0, sample_rate)
+        high = noise - low
+        ir = low * np.exp(-6.9078 * t / rt60) + high * np.exp(-13.8155 * t / rt60)
+        ir[:pre] = 0.0
+        early = rng.integers(pre, max(pre + 1, int(0.03 * sample_rate)), 6)
+        ir[early] += rng.uniform(-1.0, 1.0, 6).astype(np.float32) * np.float32(
+            8.0 / np.sqrt(sample_rate * 0.01)
+        )
+        ir /= np.float32(max(float(np.sqrt(np.sum(np.square(ir, dtype=np.float64)))), 1e-12))
+        irs.append(ir.astype(np.float32))
+    return np.stack(irs)

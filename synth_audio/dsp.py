@@ -1,0 +1,214 @@
+"""Small vectorised signal-processing helpers shared by the source modules."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.signal import lfilter
+
+_INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
+NOISE_PERIOD = 2**18
+"""Length of the looped noise beds, samples (5.9 s at 44.1 kHz)."""
+TABLE_SIZE = 8192
+"""Points per cycle of the harmonic wavetables."""
+
+
+def white(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Unit-variance uniform white noise, float32 (fast: built from the generator's raw bytes)."""
+    raw = np.frombuffer(rng.bytes(2 * max(n, 0)), dtype=np.int16)
+    out = raw.astype(np.float32)
+    out *= np.float32(1.0 / _INT16_STD)
+    return out
+
+
+def shaped_noise(
+    rng: np.random.Generator,
+    n: int,
+    sample_rate: int,
+    points_hz: tuple[float, ...],
+    gains_db: tuple[float, ...],
+) -> np.ndarray:
+    """Gaussian-like noise of length n whose magnitude spectrum follows (points_hz, gains_db), unit RMS.
+
+    The spectrum is interpolated linearly in log-frequency between the points and held flat outside them.
+    """
+    if n <= 0:
+        return np.zeros(0, dtype=np.float32)
+    nfft = sfft.next_fast_len(n, real=True)
+    nbins = nfft // 2 + 1
+    freqs = np.arange(nbins, dtype=np.float64) * (sample_rate / nfft)
+    logf = np.log(np.maximum(freqs, 1.0))
+    shape = 10.0 ** (np.interp(logf, np.log(points_hz), gains_db) / 20.0)
+    shape[0] = 0.0
+    spectrum = np.empty(nbins, dtype=np.complex64)
+    spectrum.real = white(rng, nbins) * shape
+    spectrum.imag = white(rng, nbins) * shape
+    out = sfft.irfft(spectrum, nfft)[:n].astype(np.float32, copy=False)
+    return normalise_rms(out)
+
+
+def noise_loop(
+    rng: np.random.Generator,
+    n: int,
+    sample_rate: int,
+    points_hz: tuple[float, ...],
+    gains_db: tuple[float, ...],
+    period: int = NOISE_PERIOD,
+) -> np.ndarray:
+    """Like `shaped_noise` but built from one `period`-sample loop (cheap for long renders), unit RMS."""
+    if n <= period:
+        return shaped_noise(rng, n, sample_rate, points_hz, gains_db)
+    loop = shaped_noise(rng, period, sample_rate, points_hz, gains_db)
+    return np.resize(np.roll(loop, int(rng.integers(0, period))), n)
+
+
+def harmonic_table(
+    harmonics: np.ndarray, amps: np.ndarray, phases: np.ndarray, size: int = TABLE_SIZE
+) -> np.ndarray:
+    """One period of sum_k amps[k] sin(2 pi harmonics[k] x + phases[k]) on `size` + 1 points (wraps)."""
+    x = np.arange(size + 1, dtype=np.float64) / size
+    h = np.asarray(harmonics, dtype=np.float64)[:, None]
+    table = np.sum(
+        np.asarray(amps)[:, None] * np.sin(2 * np.pi * h * x[None, :] + np.asarray(phases)[:, None]), axis=0
+    )
+    return table.astype(np.float32)
+
+
+def wavetable(phase: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Periodic waveform `table` (size + 1 points over one cycle) read at `phase` cycles (linear interp.)."""
+    size = table.size - 1
+    pos = phase - np.floor(phase)
+    pos *= np.float32(size)
+    whole = np.floor(pos)
+    pos -= whole
+    idx = whole.astype(np.intp)
+    np.minimum(idx, size - 1, out=idx)
+    lo = np.take(table, idx)
+    idx += 1
+    hi = np.take(table, idx)
+    hi -= lo
+    hi *= pos
+    hi += lo
+    return hi
+
+
+def normalise_rms(x: np.ndarray) -> np.ndarray:
+    """x scaled to unit RMS in place (all-zero input is returned unchanged)."""
+    rms = float(np.sqrt(np.mean(np.square(x, dtype=np.float64)))) if x.size else 0.0
+    if rms > 0.0:
+        x *= np.float32(1.0 / rms)
+    return x
+
+
+def rms(x: np.ndarray) -> float:
+    """Root mean square over every element."""
+    return float(np.sqrt(np.mean(np.square(x, dtype=np.float64)))) if x.size else 0.0
+
+
+def block_ramp(values: np.ndarray, block: int, n: int) -> np.ndarray:
+    """Per-sample linear interpolation of control values given at block boundaries (..., nb+1) -> (..., n)."""
+    v = np.asarray(values, dtype=np.float32)
+    ramp = np.arange(block, dtype=np.float32) / np.float32(block)
+    start = v[..., :-1, None]
+    step = (v[..., 1:] - v[..., :-1])[..., None]
+    out = start + step * ramp
+    return out.reshape(*v.shape[:-1], -1)[..., :n]
+
+
+def frac_phase(cycles: np.ndarray, block: int, n: int) -> np.ndarray:
+    """Per-sample phase in cycles, wrapped near [0, 1), from float64 cycle counts at block boundaries.
+
+    The fractional part is taken in float64 at the boundaries and the per-block increment is ramped in
+    float32, so long signals keep full phase precision and the phase is continuous across blocks.
+    """
+    c = np.asarray(cycles, dtype=np.float64)
+    base = c[..., :-1] - np.floor(c[..., :-1])
+    inc = np.diff(c, axis=-1)
+    ramp = np.arange(block, dtype=np.float32) / np.float32(block)
+    out = base.astype(np.float32)[..., None] + inc.astype(np.float32)[..., None] * ramp
+    return out.reshape(*c.shape[:-1], -1)[..., :n]
+
+
+def damped_modes(
+    freqs: np.ndarray, t60: np.ndarray, amps: np.ndarray, phases: np.ndarray, sample_rate: int, length: int
+) -> np.ndarray:
+    """Sum of exponentially damped sinusoids (a modal bank), float32 of the given length."""
+    t = np.arange(length, dtype=np.float32) / np.float32(sample_rate)
+    nyq = 0.48 * sample_rate
+    keep = (freqs > 0) & (freqs < nyq) & (amps != 0)
+    f = freqs[keep].astype(np.float32)[:, None]
+    decay = (6.907755 / np.maximum(t60[keep], 1e-4)).astype(np.float32)[:, None]
+    a = amps[keep].astype(np.float32)[:, None]
+    ph = phases[keep].astype(np.float32)[:, None]
+    if f.size == 0:
+        return np.zeros(length, dtype=np.float32)
+    return np.sum(a * np.exp(-decay * t) * np.sin(np.float32(2 * np.pi) * f * t + ph), axis=0)
+
+
+def modal_length(t60: np.ndarray, sample_rate: int, cap_s: float = 1.5) -> int:
+    """Samples needed for the slowest mode to decay by 60 dB (capped)."""
+    longest = float(np.max(t60)) if np.size(t60) else 0.01
+    return max(int(min(longest, cap_s) * sample_rate), 16)
+
+
+def overlap_add(n: int, positions: np.ndarray, amps: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Sum of `amps[i] * kernel` placed at integer sample `positions[i]`, truncated to n samples."""
+    out = np.zeros(n, dtype=np.float32)
+    if positions.size == 0 or kernel.size == 0:
+        return out
+    idx = positions.astype(np.int64)[:, None] + np.arange(kernel.size)[None, :]
+    vals = amps.astype(np.float32)[:, None] * kernel.astype(np.float32)[None, :]
+    ok = (idx >= 0) & (idx < n)
+    out += np.bincount(idx[ok], weights=vals[ok], minlength=n)[:n].astype(np.float32)
+    return out
+
+
+def add_at(out: np.ndarray, start: int, signal: np.ndarray) -> None:
+    """out[start : start + len(signal)] += signal, clipped to out's bounds (in place)."""
+    n = out.shape[0]
+    a, b = max(start, 0), min(start + signal.shape[0], n)
+    if b > a:
+        out[a:b] += signal[a - start : b - start]
+
+
+def fractional_taps(delay: float) -> tuple[int, np.ndarray]:
+    """Third-order Lagrange fractional delay: (first integer shift m, 4 taps) with y[n] = sum h_k x[n-m-k]."""
+    d = max(float(delay), 1.0)
+    m = int(np.floor(d)) - 1
+    frac = d - m
+    k = np.arange(4)
+    taps = np.ones(4)
+    for j in range(4):
+        other = k != j
+        taps[other] *= (frac - j) / (k[other] - j)
+    return m, taps.astype(np.float32)
+
+
+def delay_into(out: np.ndarray, x: np.ndarray, delay: float, gain: float, start: int = 0) -> None:
+    """out[start + n] += gain * x delayed by a fractional number of samples (Lagrange, in place)."""
+    m, taps = fractional_taps(delay)
+    for k in range(4):
+        add_at(out, start + m + k, x * np.float32(gain * taps[k]))
+
+
+def fft_convolve(x: np.ndarray, kernels: np.ndarray, n: int) -> np.ndarray:
+    """Convolve one signal with several kernels (K, L) by one forward FFT; returns (K, n) float32."""
+    length = x.shape[0] + kernels.shape[-1] - 1
+    nfft = sfft.next_fast_len(length, real=True)
+    xf = sfft.rfft(x.astype(np.float32, copy=False), nfft)
+    kf = sfft.rfft(kernels.astype(np.float32, copy=False), nfft, axis=-1)
+    return sfft.irfft(kf * xf[None, :], nfft, axis=-1)[:, :n].astype(np.float32, copy=False)
+
+
+def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: int) -> np.ndarray:
+    """First-order low-pass (cheap, for short segments)."""
+    a = float(np.exp(-2.0 * np.pi * cutoff_hz / sample_rate))
+    return lfilter([1.0 - a], [1.0, -a], x).astype(np.float32)
+
+
+def resonate(x: np.ndarray, freq_hz: float, damping_ratio: float, sample_rate: int) -> np.ndarray:
+    """Two-pole resonator at freq_hz with the given damping ratio, unit gain at resonance (approx.)."""
+    f = float(np.clip(freq_hz, 10.0, 0.45 * sample_rate))
+    r = float(np.exp(-2.0 * np.pi * f * damping_ratio / sample_rate))
+    w = 2.0 * np.pi * f / sample_rate
+    return lfilter([1.0 - r], [1.0, -2.0 * r * np.cos(w), r * r], x).astype(np.float32)

@@ -1,0 +1,272 @@
+"""`render(trace, config, seed) -> Audio`: every source, spatialised at the two microphones, and the mix.
+
+Levels: the robot's sound is scaled so that its unit's reference drive (straight at
+`config.reference_speed` on concrete, motor and rolling sound only) has RMS `reference_level_dbfs`; this
+fixed, per-unit reference is the "mean RMS of the unit" against which the environment is set to
+`snr_db` (as MIMII / ToyADMOS2 mix at a fixed level per machine, not per clip), so a loud collision never
+turns the background down.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from sim.trace import RobotInfo, Trace
+from synth_audio import ambience as amb
+from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
+from synth_audio.drive import Drive, build_drive, rolling_torque
+from synth_audio.dsp import add_at, fft_convolve, rms, shaped_noise, white
+from synth_audio.faults import fault_sound
+from synth_audio.impacts import impact, scrape
+from synth_audio.motor import motor_wheel
+from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
+from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
+from synth_audio.transients import transient
+from synth_audio.validate import check_seed, check_trace
+
+_STREAMS = ("motor", "rolling", "transients", "impacts", "faults", "ambience", "room", "mic_noise", "noise")
+_REFERENCE_SURFACE = "concrete"
+_REFERENCE_SECONDS = 1.0
+_LIMIT_KNEE = 0.5
+_reference_cache: dict[tuple[object, ...], float] = {}
+
+
+def _rng(seed: int, stream: str) -> np.random.Generator:
+    """Independent generator per source group, so that adding a source never changes another."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_STREAMS.index(stream),)))
+
+
+def _unit_rng(robot: RobotInfo, wheel: int) -> np.random.Generator:
+    """Generator for the unit's fixed character (harmonic weights): the same unit sounds the same."""
+    unit = int(robot.unit_id)
+    return np.random.default_rng([abs(unit), int(unit < 0), wheel, 0xA0D10])
+
+
+def _body_sources(robot: RobotInfo) -> np.ndarray:
+    """(W + 1, 3) body-frame positions of the per-wheel buses and the chassis bus (wheel centroid)."""
+    wheels = np.asarray(robot.wheel_pos_body, dtype=np.float64)
+    return np.vstack([wheels, np.mean(wheels, axis=0, keepdims=True)])
+
+
+def _robot_buses(drive: Drive, surface: str, seed: int, trace: Trace | None) -> dict[str, np.ndarray]:
+    """Mono buses (W + 1, n) per robot source group; the last row is the chassis. Events need `trace`."""
+    robot = drive.robot
+    w, n, sr = drive.n_wheels, drive.n, drive.sample_rate
+    buses = {name: np.zeros((w + 1, n), dtype=np.float32) for name in ("motor", "rolling")}
+    noise_rng = _rng(seed, "noise")
+    spec = SURFACES[surface]
+    road = shaped_noise(noise_rng, n, sr, spec.points_hz, spec.gains_db)
+    brush = shaped_noise(noise_rng, n, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
+    roll_rng = _rng(seed, "rolling")
+    motor_rng = _rng(seed, "motor")
+    for i in range(w):
+        shift = int(n * i / w) + int(noise_rng.integers(0, max(n // (4 * w), 1)))
+        buses["motor"][i] = motor_wheel(
+            drive, i, _unit_rng(robot, i), np.roll(brush, shift), float(motor_rng.uniform())
+        )
+        buses["rolling"][i] = rolling_wheel(drive, i, spec, np.roll(road, shift), roll_rng)
+    buses["rolling"][w] = chassis_rattle(drive, spec, roll_rng)
+    if trace is None:
+        return buses
+    buses["transients"] = np.zeros((w + 1, n), dtype=np.float32)
+    tr_rng = _rng(seed, "transients")
+    tr = trace.transients
+    for i in range(len(tr.kind)):
+        wheel = int(tr.wheel[i])
+        t = float(tr.time[i])
+        speed = float(np.interp(t, drive.block_time, drive.speed_mps[wheel]))
+        sound = transient(tr.kind[i], float(tr.impulse[i]), speed, sr, tr_rng)
+        add_at(buses["transients"][wheel], round(t * sr), sound)
+    buses["faults"] = np.zeros((w + 1, n), dtype=np.float32)
+    fault_rng = _rng(seed, "faults")
+    for fault in trace.faults:
+        nominal = buses["motor"][fault.wheel] + buses["rolling"][fault.wheel]
+        buses["faults"][fault.wheel] += fault_sound(drive, fault, nominal, fault_rng)
+    return buses
+
+
+def _spatialize(bus: np.ndarray, delays: np.ndarray, gains: np.ndarray) -> np.ndarray:
+    """(2, n) from mono buses (S, n) at body-fixed positions with delays/gains (S, 2)."""
+    out = np.zeros((2, bus.shape[1]), dtype=np.float32)
+    for s in range(bus.shape[0]):
+        if np.any(bus[s]):
+            spatialize_into(out, bus[s], delays[s], gains[s])
+    return out
+
+
+def _impacts(trace: Trace, sr: int, seed: int, speed_of_sound: float) -> np.ndarray:
+    """(2, n) collision impacts and scrapes, each spatialised from its world contact point."""
+    n = round(trace.duration * sr)
+    out = np.zeros((2, n), dtype=np.float32)
+    c = trace.contacts
+    if len(c.material) == 0:
+        return out
+    rng = _rng(seed, "impacts")
+    axes_body = mic_axes(np.asarray(trace.robot.mic_pos_body))
+    for i in range(len(c.material)):
+        t = float(c.time[i])
+        k = int(np.clip(np.searchsorted(trace.time, t), 0, len(trace.time) - 1))
+        rot = quat_to_matrix(trace.base_quat[k])
+        delays, gains = point_gains(c.position[i], trace.mic_pos[k], axes_body @ rot.T, sr, speed_of_sound)
+        start = math.floor(t * sr)
+        offset = t * sr - start
+        sound = impact(c.material[i], float(c.impulse[i]), float(c.normal_speed[i]), sr, rng)
+        normal = np.asarray(c.normal[i], dtype=np.float64)
+        vel = np.asarray(trace.base_linvel[k], dtype=np.float64)
+        slide = float(np.linalg.norm(vel - np.dot(vel, normal) * normal))
+        rub = scrape(c.material[i], float(c.impulse[i]), float(c.duration[i]), slide, sr, rng)
+        if rub.size:
+            sound = np.pad(sound, (0, max(rub.size - sound.size, 0)))
+            sound[: rub.size] += rub
+        spatialize_into(out, sound, delays[0] + offset, gains[0], start)
+    return out
+
+
+def _world_to_body(trace: Trace) -> Callable[[float], np.ndarray]:
+    def rotation(t: float) -> np.ndarray:
+        k = int(np.clip(np.searchsorted(trace.time, t), 0, len(trace.time) - 1))
+        return quat_to_matrix(trace.base_quat[k]).T
+
+    return rotation
+
+
+def reference_rms(robot: RobotInfo, config: AudioConfig) -> float:
+    """Raw (unscaled) binaural RMS of the unit's reference drive; cached per unit and config."""
+    key = (
+        robot.model, robot.unit_id, robot.mass, robot.wheel_names, robot.wheel_radius.tobytes(),
+        np.asarray(robot.wheel_pos_body).tobytes(), np.asarray(robot.mic_pos_body).tobytes(),
+        robot.gear_ratio, robot.pinion_teeth, robot.motor_pole_pairs, robot.pwm_hz, robot.tread_blocks,
+        config.sample_rate, config.reference_speed, config.speed_of_sound,
+    )  # fmt: skip
+    cached = _reference_cache.get(key)
+    if cached is not None:
+        return cached
+    sr = config.sample_rate
+    n = int(_REFERENCE_SECONDS * sr)
+    t = np.arange(0.0, _REFERENCE_SECONDS + 0.01, 0.002)
+    w = len(robot.wheel_names)
+    omega = config.reference_speed / np.asarray(robot.wheel_radius, dtype=np.float64)
+    angle = t[:, None] * omega[None, :]
+    speed = np.broadcast_to(omega, (t.size, w))
+    torque = np.full((t.size, w), rolling_torque(robot))
+    drive = build_drive(robot, t, angle, speed, torque, n, sr)
+    buses = _robot_buses(drive, _REFERENCE_SURFACE, 0, None)
+    delays, gains = point_gains(
+        _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
+    )
+    value = rms(_spatialize(buses["motor"] + buses["rolling"], delays, gains))
+    if not value > 0:
+        raise AudioError(
+            "the robot unit's reference drive is silent; check robot.wheel_radius and gear_ratio"
+        )
+    if len(_reference_cache) > 256:
+        _reference_cache.clear()
+    _reference_cache[key] = value
+    return value
+
+
+def _limit(x: np.ndarray) -> np.ndarray:
+    """Monotonic soft limiter: identity below the knee, tanh towards full scale above it (in place)."""
+    mag = np.abs(x)
+    over = mag > _LIMIT_KNEE
+    if np.any(over):
+        span = 1.0 - _LIMIT_KNEE
+        x[over] = np.sign(x[over]) * (_LIMIT_KNEE + span * np.tanh((mag[over] - _LIMIT_KNEE) / span))
+    return x
+
+
+def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Audio:
+    """Render a trace to two-microphone audio.
+
+    Args:
+        trace: the simulated episode.
+        config: rendering settings (defaults: 44.1 kHz, 6 dB SNR, ambience on, no stems).
+        seed: seed of every random draw; the same seed gives the same samples bit for bit.
+
+    Returns:
+        Audio with samples (round(trace.duration * sample_rate), 2) float32 and stems if asked.
+
+    Raises:
+        AudioError: the trace or config cannot be rendered (the message names the problem).
+    """
+    config = config if config is not None else AudioConfig()
+    if not isinstance(config, AudioConfig):
+        raise AudioError(f"config must be a synth_audio.AudioConfig, got {type(config).__name__}")
+    config.validate()
+    seed = check_seed(seed)
+    check_trace(trace)
+    sr = config.sample_rate
+    n = round(trace.duration * sr)
+    robot = trace.robot
+    drive = build_drive(robot, trace.time, trace.wheel_angle, trace.wheel_speed, trace.wheel_torque, n, sr)
+    scale = 10.0 ** (config.reference_level_dbfs / 20.0) / reference_rms(robot, config)
+    gains_db = {
+        "motor": config.gain_motor_db,
+        "rolling": config.gain_rolling_db,
+        "transients": config.gain_transients_db,
+        "faults": config.gain_faults_db,
+    }
+    buses = _robot_buses(drive, trace.surface, seed, trace)
+    delays, gains = point_gains(
+        _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
+    )
+    stems: dict[str, np.ndarray] = {}
+    if config.stems:
+        for name, bus in buses.items():
+            stems[name] = _spatialize(bus, delays, gains) * np.float32(
+                scale * 10.0 ** (gains_db[name] / 20.0)
+            )
+    else:
+        total = sum(bus * np.float32(10.0 ** (gains_db[name] / 20.0)) for name, bus in buses.items())
+        stems["robot"] = _spatialize(np.asarray(total), delays, gains) * np.float32(scale)
+    impacts = _impacts(trace, sr, seed, config.speed_of_sound)
+    impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
+    stems["impacts"] = impacts
+    indoor = trace.environment == "indoor"
+    reverb = indoor and config.rt60_s > 0
+    ir = amb.room_ir(config.rt60_s, sr, _rng(seed, "room")) if reverb else None
+    if ir is not None:
+        dry = np.zeros(n, dtype=np.float32)
+        for part in stems.values():
+            dry += part[0]
+            dry += part[1]
+        send = dry * np.float32(0.5 * 10.0 ** (config.room_send_db / 20.0))
+        stems["room"] = fft_convolve(send, ir, n)
+    if config.ambience:
+        scene = amb.Scene(
+            n, sr, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),
+            config.speed_of_sound, _world_to_body(trace),
+        )  # fmt: skip
+        env_rng = _rng(seed, "ambience")
+        if indoor:
+            env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz)
+        else:
+            env, env_send = amb.outdoor(scene, env_rng, config.bird_rate_hz)
+        if ir is not None and env_send.size:
+            env += fft_convolve(env_send, ir, n)
+        level = rms(env)
+        target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
+        if level > 0:
+            env *= np.float32(target / level)
+        stems["ambience"] = env
+    if math.isfinite(config.mic_noise_dbfs):
+        noise_rng = _rng(seed, "mic_noise")
+        noise = np.stack([white(noise_rng, n), white(noise_rng, n)])
+        stems["mic_noise"] = noise * np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
+    mix = np.zeros((2, n), dtype=np.float32)
+    for part in stems.values():
+        mix += part
+    if config.limiter:
+        _limit(mix)
+    samples = np.ascontiguousarray(mix.T, dtype=np.float32)
+    out_stems: dict[str, np.ndarray] = {}
+    if config.stems:
+        zero = np.zeros((n, 2), dtype=np.float32)
+        out_stems = {
+            name: np.ascontiguousarray(stems[name].T, dtype=np.float32) if name in stems else zero.copy()
+            for name in STEM_NAMES
+        }
+    return Audio(samples=samples, sample_rate=sr, stems=out_stems)

@@ -1,0 +1,124 @@
+"""File I/O round trips, refusal of every bad input, and the `msvdd-bench synth` command."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from audio_trace_kit import contacts, make_trace
+
+from benchmarks.cli import main
+from sim.trace import FaultRecord, Trace
+from synth_audio import Audio, AudioConfig, AudioError, read, render, write
+
+
+@pytest.fixture(scope="module")
+def audio() -> Audio:
+    return render(make_trace(1.0, 9.0, contact_events=contacts([0.5], [6.0])), AudioConfig(), seed=0)
+
+
+def test_flac_round_trip_within_24_bit_quantisation(tmp_path: Path, audio: Audio) -> None:
+    back = read(write(tmp_path / "a.flac", audio))
+    assert back.sample_rate == audio.sample_rate and back.samples.shape == audio.samples.shape
+    assert np.max(np.abs(back.samples - audio.samples)) <= 2.0**-23
+
+
+def test_wav_round_trip_is_exact(tmp_path: Path, audio: Audio) -> None:
+    back = read(write(tmp_path / "a.wav", audio))
+    np.testing.assert_array_equal(back.samples, audio.samples)
+
+
+def test_unsupported_suffix_and_over_range_flac_write_nothing(tmp_path: Path, audio: Audio) -> None:
+    with pytest.raises(AudioError, match="suffix"):
+        write(tmp_path / "a.mp3", audio)
+    loud = Audio(samples=audio.samples * 4.0, sample_rate=audio.sample_rate)
+    with pytest.raises(AudioError, match="full scale"):
+        write(tmp_path / "loud.flac", loud)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _with(trace: Trace, **changes: object) -> Trace:
+    return dataclasses.replace(trace, **changes)  # type: ignore[arg-type]
+
+
+def _bad_traces() -> dict[str, tuple[Trace, str]]:
+    good = make_trace(0.5, 8.0)
+    speed = good.wheel_speed.copy()
+    speed[10, 2] = np.nan
+    torque = good.wheel_torque.copy()
+    torque[3, 0] = np.inf
+    robot_no_mics = dataclasses.replace(good.robot, mic_pos_body=np.zeros((0, 3)))
+    return {
+        "nan": (_with(good, wheel_speed=speed), "wheel_speed"),
+        "inf": (_with(good, wheel_torque=torque), "wheel_torque"),
+        "no mic_pos": (_with(good, mic_pos=np.zeros((good.time.size, 0, 3))), "microphone"),
+        "no mic_pos_body": (_with(good, robot=robot_no_mics), "microphone"),
+        "material": (_with(good, contacts=contacts([0.1], [1.0], materials=["adamantium"])), "material"),
+        "surface": (_with(good, surface="ice"), "surface"),
+        "fault wheel": (_with(good, faults=(FaultRecord("bearing", 9, 0.5, 0, 1, 3, 2000, 0.05),)), "wheel"),
+        "fault kind": (
+            _with(good, faults=(FaultRecord("wobble", 0, 0.5, 0, 1, 3, 2000, 0.05),)),
+            "fault kind",
+        ),
+    }
+
+
+@pytest.mark.parametrize("case", list(_bad_traces()))
+def test_bad_traces_are_refused_by_name(case: str) -> None:
+    trace, words = _bad_traces()[case]
+    with pytest.raises(AudioError, match=words):
+        render(trace, AudioConfig(), seed=0)
+
+
+@pytest.mark.parametrize(
+    ("changes", "words"),
+    [
+        ({"sample_rate": 8000}, "sample_rate"),
+        ({"sample_rate": 200000}, "sample_rate"),
+        ({"sample_rate": 44100.5}, "sample_rate"),
+        ({"snr_db": float("nan")}, "snr_db"),
+        ({"snr_db": float("inf")}, "snr_db"),
+        ({"rt60_s": -1.0}, "rt60_s"),
+    ],
+)
+def test_bad_configs_are_refused_by_name(changes: dict[str, object], words: str) -> None:
+    with pytest.raises(AudioError, match=words):
+        render(make_trace(0.3, 5.0), AudioConfig(**changes), seed=0)  # type: ignore[arg-type]
+
+
+def test_negative_seed_is_refused() -> None:
+    with pytest.raises(AudioError, match="seed"):
+        render(make_trace(0.3, 5.0), AudioConfig(), seed=-1)
+
+
+def test_cli_synth_writes_audio_and_stems(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    trace_path = make_trace(1.0, 9.0, contact_events=contacts([0.5], [3.0])).save(tmp_path / "t.npz")
+    out = tmp_path / "out" / "a.flac"
+    stems = tmp_path / "stems"
+    code = main(["synth", "--trace", str(trace_path), "--out", str(out), "--snr", "0", "--stems", str(stems)])
+    assert code == 0, capsys.readouterr().err
+    assert read(out).samples.shape == (44100, 2)
+    assert sorted(p.name for p in stems.iterdir())[:2] == ["ambience.wav", "faults.wav"]
+
+
+@pytest.mark.parametrize("case", ["nan", "no mic_pos", "material", "snr", "rate"])
+def test_cli_synth_refuses_bad_input_and_writes_nothing(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    trace = make_trace(0.5, 8.0) if case in ("snr", "rate") else _bad_traces()[case][0]
+    trace_path = trace.save(tmp_path / "t.npz")
+    out = tmp_path / "out.flac"
+    extra = {"snr": ["--snr", "nan"], "rate": ["--sample-rate", "8000"]}.get(case, [])
+    args = ["synth", "--trace", str(trace_path), "--out", str(out), "--stems", str(tmp_path / "st"), *extra]
+    assert main(args) == 2
+    assert "error" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.npz"]
+
+
+def test_perf_stage_quick_reports_a_real_time_factor(tmp_path: Path) -> None:
+    from benchmarks.perf.audio import STAGE
+
+    figures = STAGE.measure(True)
+    assert figures["audio_rtf"] > 0 and set(STAGE.describe) <= set(figures)

@@ -180,10 +180,16 @@ def random_scenario(
     for kind in rng.choice(_CLUTTER[environment], size=int(rng.integers(3, 7))):
         _place(rng, str(kind), arena, obstacles, target=False)
 
-    waypoints, start = _wander(rng, arena, obstacles, duration)
     if category == "collision":
-        n_hits = 1 + min(3, int(duration // 60.0))
-        waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_hits, start, duration)
+        first, begin = _first_ram(rng, obstacles, arena)
+        rest, _ = _wander(rng, arena, obstacles, duration, begin=np.array([first[-1].x, first[-1].y]))
+        start = (float(begin[0]), float(begin[1]), float(rng.uniform(-math.pi, math.pi)))
+        waypoints = first + rest
+        n_more = min(3, int(duration // 60.0))
+        if n_more:
+            waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_more, start, duration)
+    else:
+        waypoints, start = _wander(rng, arena, obstacles, duration)
     route = Route(
         start=start,
         waypoints=tuple(waypoints),
@@ -276,11 +282,35 @@ def _free_point(
     return None
 
 
+def _first_ram(
+    rng: np.random.Generator, obstacles: list[Obstacle], arena: tuple[float, float]
+) -> tuple[list[Waypoint], np.ndarray]:
+    """Ram legs at obstacle 0 and a start point a short nominal drive (2-5 m) from their approach point."""
+    for _ in range(200):
+        legs = _ram_legs(rng, obstacles[0], obstacles[1:], arena)
+        if legs is None:
+            continue
+        approach = np.array([legs[0].x, legs[0].y])
+        if _clearance(approach[None], obstacles) < 0.6:
+            continue
+        for _ in range(30):
+            begin = _free_point(rng, arena, obstacles)
+            if begin is None:
+                break
+            if 2.0 <= float(np.linalg.norm(begin - approach)) <= 5.0 and _segment_clear(begin, approach, obstacles, 0.6):
+                return legs, begin
+    raise ScenarioError(f"obstacle_kind = {obstacles[0].kind!r}: no clear approach found in this arena; try another seed")
+
+
 def _wander(
-    rng: np.random.Generator, arena: tuple[float, float], obstacles: list[Obstacle], duration: float
+    rng: np.random.Generator,
+    arena: tuple[float, float],
+    obstacles: list[Obstacle],
+    duration: float,
+    begin: np.ndarray | None = None,
 ) -> tuple[list[Waypoint], tuple[float, float, float]]:
-    """A looping route through free space long enough for `duration`."""
-    start = _free_point(rng, arena, obstacles)
+    """A looping route through free space long enough for `duration` (from `begin` when given)."""
+    start = begin if begin is not None else _free_point(rng, arena, obstacles)
     if start is None:
         raise ScenarioError("arena too crowded: no free start point (reduce obstacles)")
     points = [start]
@@ -332,8 +362,9 @@ def _insert_rams(
     wanted = np.sort(rng.uniform(0.05, 0.6, size=n_hits)) * duration
     inserted: list[tuple[int, list[Waypoint]]] = []
     used: set[int] = set()
-    for t in wanted:
-        first = max(0, int(np.searchsorted(arrive, t)) - 1)
+    for n, t in enumerate(wanted):
+        # The first ram follows one nominal leg, so that even a short episode contains it.
+        first = min(1, len(pts) - 2) if n == 0 else max(0, int(np.searchsorted(arrive, t)) - 1)
         for slot in range(first, len(pts) - 1):
             if slot in used:
                 continue

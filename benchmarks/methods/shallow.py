@@ -75,6 +75,8 @@ class _Block:
         self.train_scores = np.zeros(0)
         self.sklearn: IsolationForest | OneClassSVM | None = None
         self.svdd: KernelSVDD | None = None
+        self.rows = (0, 0)
+        """(training rows offered, rows the model was fitted on): OCSVM and SVDD subsample above max_train."""
 
     @classmethod
     def fit(cls, config: ShallowConfig, features: np.ndarray) -> _Block:
@@ -90,7 +92,9 @@ class _Block:
         if c.model == "svdd":
             self.svdd = KernelSVDD(nu=NU, max_train=c.max_train, seed=c.seed).fit(x)
             self.train_x = np.zeros((0, x.shape[1]))
+            self.rows = (self.svdd.n_offered_, self.svdd.n_fit_)
         else:
+            offered = x.shape[0]
             if x.shape[0] > c.max_train and c.model == "ocsvm":
                 pick = np.random.default_rng(c.seed).choice(x.shape[0], c.max_train, replace=False)
                 x = x[np.sort(pick)]
@@ -101,6 +105,7 @@ class _Block:
             else:
                 self.sklearn = OneClassSVM(kernel="rbf", nu=NU, gamma="scale").fit(x)
             self.train_x = x
+            self.rows = (offered, x.shape[0])
         self.train_scores = self.raw_scores(x)
 
     def raw_scores(self, x: np.ndarray) -> np.ndarray:
@@ -160,6 +165,11 @@ class ShallowDetector(WindowDetector):
         self.features = features if features is not None else FeatureConfig()
         self._blocks: list[_Block] = []
 
+    @property
+    def training_rows(self) -> list[tuple[int, int]]:
+        """Per model: (training windows offered, windows it was fitted on); they differ when subsampled."""
+        return [b.rows for b in self._blocks]
+
     def _feature_blocks(self, batch: Windows) -> list[np.ndarray]:
         f = window_features(batch, self.features)
         return [f.early()] if self.config.fusion == "early" else [f.audio, f.imu]
@@ -189,6 +199,7 @@ class ShallowDetector(WindowDetector):
             },
             "features": {**self.features.__dict__, "imu_band_edges": list(self.features.imu_band_edges)},
             "n_blocks": len(self._blocks),
+            "rows": [list(b.rows) for b in self._blocks],
         }
         arrays: dict[str, np.ndarray] = {}
         for b, block in enumerate(self._blocks):
@@ -204,6 +215,8 @@ class ShallowDetector(WindowDetector):
         detector._blocks = [
             _Block.from_state(config, f"b{b}_", arrays) for b in range(int(header["n_blocks"]))
         ]
+        for block, rows in zip(detector._blocks, header["rows"], strict=True):
+            block.rows = (int(rows[0]), int(rows[1]))
         return detector
 
 

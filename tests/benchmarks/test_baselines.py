@@ -189,3 +189,12 @@ def test_dagmm_energy_matches_scipy_mixture_density() -> None:
 def test_deep_svdd_centre_is_kept_away_from_zero() -> None:
     z = torch.tensor([[0.05, -0.02, 1.0], [0.03, -0.04, 3.0]])
     np.testing.assert_allclose(_center(z).numpy(), [0.1, -0.1, 2.0])
+
+
+def test_shallow_subsampling_is_recorded_and_survives_save(tmp_path: Path) -> None:
+    windows, _ = toy_windows(30, 0, seed=9)
+    config = ShallowConfig(model="svdd", fusion="early", seed=0, max_train=20)
+    det = ShallowDetector(config).fit(windows)
+    assert det.training_rows == [(30, 20)]
+    det.save(tmp_path / "m.npz")
+    assert ShallowDetector.load(tmp_path / "m.npz").training_rows == [(30, 20)]

@@ -19,9 +19,8 @@ from synth_audio.dsp import (
     block_ramp,
     damped_modes,
     frac_phase,
+    noise_loop,
     one_pole_lowpass,
-    shaped_noise,
-    white,
 )
 from synth_audio.spatial import plane_wave_gains, spatialize_into
 
@@ -94,7 +93,7 @@ def _babble(scene: Scene, rng: np.random.Generator, talkers: int) -> np.ndarray:
     n, sr = scene.n, scene.sample_rate
     nb = -(-n // _BLOCK) + 1
     ctrl = sr / _BLOCK
-    noise = shaped_noise(rng, n, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
+    noise = noise_loop(rng, n, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
     out = np.zeros(n, dtype=np.float32)
     for _ in range(talkers):
         f0 = rng.uniform(95.0, 220.0) * np.exp(0.08 * _slow_process(rng, nb, ctrl, 3.0))
@@ -113,7 +112,7 @@ def indoor(scene: Scene, rng: np.random.Generator, door_rate: float) -> tuple[np
     """(2, n) dry indoor ambience and the (n,) mono reverberation send."""
     n, sr = scene.n, scene.sample_rate
     duration = n / sr
-    fan = shaped_noise(rng, n, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
+    fan = noise_loop(rng, n, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
     nb = -(-n // _BLOCK) + 1
     tb = np.arange(nb) * (_BLOCK / sr)
     mains = 50.0 if rng.uniform() < 0.5 else 60.0
@@ -162,12 +161,12 @@ def outdoor(scene: Scene, rng: np.random.Generator, bird_rate: float) -> tuple[n
     ctrl = sr / _BLOCK
     gust = np.exp(0.7 * _slow_process(rng, nb, ctrl, 0.25)) * rng.uniform(0.6, 1.2)
     gust_env = block_ramp(gust[None, :], _BLOCK, n)[0]
-    wind = shaped_noise(rng, n, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
+    wind = noise_loop(rng, n, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
     shift = int(rng.integers(n // 4 + 1, n // 2 + 2)) if n > 8 else 0
     out = np.stack([wind, np.roll(wind, shift)]) * (gust_env * np.float32(0.8))  # wind noise is incoherent
-    rustle = shaped_noise(rng, n, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
+    rustle = noise_loop(rng, n, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
     out += _diffuse(rustle * gust_env * np.float32(0.15), 0.4, rng)
-    rumble = shaped_noise(rng, n, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
+    rumble = noise_loop(rng, n, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
     swell = 0.6 + 0.4 * np.clip(_slow_process(rng, nb, ctrl, 0.05) + 1.0, 0.0, None)
     for t in _event_times(rng, 0.08, duration):  # vehicles passing by
         swell += rng.uniform(0.5, 1.5) * np.exp(
@@ -178,27 +177,3 @@ def outdoor(scene: Scene, rng: np.random.Generator, bird_rate: float) -> tuple[n
         azimuth = float(rng.uniform(0, 2 * np.pi))
         _event_into(out, scene, _chirp(rng, sr) * np.float32(rng.lognormal(-1.2, 0.5)), float(t), azimuth)
     return out, np.zeros(0, dtype=np.float32)
-
-
-def room_ir(rt60: float, sample_rate: int, rng: np.random.Generator) -> np.ndarray:
-    """(2, L) decorrelated room impulse responses with the given RT60 (highs decay twice as fast).
-
-    Each channel has unit energy, a 4 ms pre-delay and a few early reflections.
-    """
-    length = int(min(1.1 * rt60, 2.5) * sample_rate) + 1
-    t = np.arange(length) / sample_rate
-    pre = int(0.004 * sample_rate)
-    irs = []
-    for _ in range(2):
-        noise = white(rng, length)
-        low = one_pole_lowpass(noise, 1500.0, sample_rate)
-        high = noise - low
-        ir = low * np.exp(-6.9078 * t / rt60) + high * np.exp(-13.8155 * t / rt60)
-        ir[:pre] = 0.0
-        early = rng.integers(pre, max(pre + 1, int(0.03 * sample_rate)), 6)
-        ir[early] += rng.uniform(-1.0, 1.0, 6).astype(np.float32) * np.float32(
-            8.0 / np.sqrt(sample_rate * 0.01)
-        )
-        ir /= np.float32(max(float(np.sqrt(np.sum(np.square(ir, dtype=np.float64)))), 1e-12))
-        irs.append(ir.astype(np.float32))
-    return np.stack(irs)

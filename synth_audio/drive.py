@@ -6,6 +6,7 @@ physics-rate trace and ramped linearly within each block, which keeps every phas
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,8 @@ from synth_audio.dsp import block_ramp, frac_phase
 
 BLOCK = 64
 """Samples per control block (1.45 ms at 44.1 kHz)."""
+CHUNK = 2**14
+"""Samples per processing span of the dense sources (a multiple of BLOCK)."""
 GRAVITY = 9.81
 """Standard gravity, m/s^2."""
 NOMINAL_SPEED = 0.6
@@ -47,25 +50,38 @@ class Drive:
         """Number of wheels."""
         return int(self.cycles.shape[0])
 
-    def ramp(self, values: np.ndarray) -> np.ndarray:
-        """Per-sample linear ramp of block-boundary values (..., nb+1) -> (..., n) float32."""
-        return block_ramp(values, BLOCK, self.n)
+    def spans(self) -> Iterator[tuple[int, int]]:
+        """Consecutive [start, stop) sample ranges of at most CHUNK samples covering the render.
 
-    def phase(self, wheel: int, multiple: float) -> np.ndarray:
+        Dense sources are computed span by span so that temporaries stay in cache; spans start on block
+        boundaries, so the result is identical to a whole-signal computation.
+        """
+        for start in range(0, self.n, CHUNK):
+            yield start, min(start + CHUNK, self.n)
+
+    def ramp(self, values: np.ndarray, span: tuple[int, int] | None = None) -> np.ndarray:
+        """Per-sample linear ramp of block-boundary values (..., nb+1) over the render or one span."""
+        if span is None:
+            return block_ramp(values, BLOCK, self.n)
+        b0, b1 = span[0] // BLOCK, -(-span[1] // BLOCK)
+        return block_ramp(values[..., b0 : b1 + 1], BLOCK, span[1] - span[0])
+
+    def phase(self, wheel: int, multiple: float, span: tuple[int, int] | None = None) -> np.ndarray:
         """Per-sample phase in cycles (wrapped near [0, 1)) of `multiple` x the wheel's rotation."""
-        return frac_phase(self.cycles[wheel] * multiple, BLOCK, self.n)
+        if span is None:
+            return frac_phase(self.cycles[wheel] * multiple, BLOCK, self.n)
+        b0, b1 = span[0] // BLOCK, -(-span[1] // BLOCK)
+        return frac_phase(self.cycles[wheel][b0 : b1 + 1] * multiple, BLOCK, span[1] - span[0])
 
 
 def reference_torque(robot: RobotInfo) -> float:
-    """Wheel torque that accelerates the unit at about 1 m/s^2 (the motor-load scale), N m."""
-    radius = float(np.mean(robot.wheel_radius))
-    return max(robot.mass * 1.0 * radius / max(len(robot.wheel_names), 1), 1e-6)
+    """Typical wheel torque while driving and turning, 0.25 m g r / W (the motor-load scale), N m.
 
-
-def rolling_torque(robot: RobotInfo) -> float:
-    """Steady rolling-resistance torque per wheel on a hard floor, N m (used by the reference drive)."""
+    The unit's reference drive runs at this torque; the motor gets louder above it (acceleration,
+    skid-steer scrubbing, pushing against an obstacle) and quieter below it (coasting).
+    """
     radius = float(np.mean(robot.wheel_radius))
-    return 0.03 * robot.mass * GRAVITY * radius / max(len(robot.wheel_names), 1)
+    return max(0.25 * robot.mass * GRAVITY * radius / max(len(robot.wheel_names), 1), 1e-6)
 
 
 def build_drive(

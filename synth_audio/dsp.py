@@ -154,13 +154,24 @@ def modal_length(t60: np.ndarray, sample_rate: int, cap_s: float = 1.5) -> int:
 def overlap_add(n: int, positions: np.ndarray, amps: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     """Sum of `amps[i] * kernel` placed at integer sample `positions[i]`, truncated to n samples."""
     out = np.zeros(n, dtype=np.float32)
+    overlap_add_into(out, positions, amps, kernel)
+    return out
+
+
+def overlap_add_into(out: np.ndarray, positions: np.ndarray, amps: np.ndarray, kernel: np.ndarray) -> None:
+    """out += sum of `amps[i] * kernel` placed at integer sample `positions[i]` (in place, clipped)."""
+    n = out.shape[0]
     if positions.size == 0 or kernel.size == 0:
-        return out
+        return
     idx = positions.astype(np.int64)[:, None] + np.arange(kernel.size)[None, :]
     vals = amps.astype(np.float32)[:, None] * kernel.astype(np.float32)[None, :]
     ok = (idx >= 0) & (idx < n)
-    out += np.bincount(idx[ok], weights=vals[ok], minlength=n)[:n].astype(np.float32)
-    return out
+    idx, vals = idx[ok], vals[ok]
+    if idx.size == 0:
+        return
+    lo = int(idx.min())
+    summed = np.bincount(idx - lo, weights=vals)
+    out[lo : lo + summed.size] += summed.astype(np.float32)
 
 
 def add_at(out: np.ndarray, start: int, signal: np.ndarray) -> None:
@@ -191,16 +202,7 @@ def delay_into(out: np.ndarray, x: np.ndarray, delay: float, gain: float, start:
         add_at(out, start + m + k, x * np.float32(gain * taps[k]))
 
 
-def fft_convolve(x: np.ndarray, kernels: np.ndarray, n: int) -> np.ndarray:
-    """Convolve one signal with several kernels (K, L) by one forward FFT; returns (K, n) float32."""
-    length = x.shape[0] + kernels.shape[-1] - 1
-    nfft = sfft.next_fast_len(length, real=True)
-    xf = sfft.rfft(x.astype(np.float32, copy=False), nfft)
-    kf = sfft.rfft(kernels.astype(np.float32, copy=False), nfft, axis=-1)
-    return sfft.irfft(kf * xf[None, :], nfft, axis=-1)[:, :n].astype(np.float32, copy=False)
-
-
-def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: int) -> np.ndarray:
+def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: float) -> np.ndarray:
     """First-order low-pass (cheap, for short segments)."""
     a = float(np.exp(-2.0 * np.pi * cutoff_hz / sample_rate))
     return lfilter([1.0 - a], [1.0, -a], x).astype(np.float32)

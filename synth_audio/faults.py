@@ -16,7 +16,7 @@ from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
 from synth_audio.dsp import damped_modes, overlap_add, resonate, white
 from synth_audio.rolling import poisson_events
 
-FAULT_SCALE = 1.0
+FAULT_SCALE = 3.0
 """Fault sound level at severity 1 and the nominal speed, relative to the nominal rolling level."""
 _EDGE_S = 0.02
 

@@ -47,7 +47,7 @@ def tone_table(drive: Drive, unit_rng: np.random.Generator) -> tuple[np.ndarray,
 def load_envelope(drive: Drive, wheel: int) -> tuple[np.ndarray, np.ndarray]:
     """(speed factor, load factor) at block boundaries for one wheel."""
     speed = np.minimum(drive.speed_mps[wheel] / NOMINAL_SPEED, 3.0) ** 0.8
-    load = np.minimum(np.abs(drive.torque[wheel]) / 0.3, 4.0)
+    load = np.minimum(np.abs(drive.torque[wheel]), 4.0)
     return speed, load
 
 
@@ -65,35 +65,50 @@ def motor_wheel(
     speed, load = load_envelope(drive, wheel)
     shaft_hz = np.abs(drive.rev_s[wheel]) * robot.gear_ratio
     top = float(np.max(shaft_hz))
-    shaft = drive.phase(wheel, robot.gear_ratio)
     ks, amps, phases = tone_table(drive, unit_rng)
     safe = ks * top <= limit
-    tonal = wavetable(shaft, harmonic_table(ks[safe], amps[safe], phases[safe]))
-    for k, amp, ph in zip(ks[~safe], amps[~safe], phases[~safe], strict=True):
-        gate = drive.ramp((k * shaft_hz <= limit).astype(np.float32) * amp)
-        tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
-        tone *= gate
-        tonal += tone
-    tonal *= drive.ramp(speed * (0.6 + 0.4 * load))
-    # Brush noise, modulated at the commutation rate (2 x pole pairs per shaft revolution).
-    comm = drive.phase(wheel, robot.gear_ratio * 2 * robot.motor_pole_pairs)
-    tmp = np.cos(np.float32(2.0 * np.pi) * comm)
-    tmp *= np.float32(0.4)
-    tmp += np.float32(1.0)
-    tmp *= brush_noise
-    tmp *= drive.ramp(_BRUSH_LEVEL * speed)
-    tonal += tmp
-    # PWM carrier with sidebands at carrier +- 2 x electrical frequency.
+    table = harmonic_table(ks[safe], amps[safe], phases[safe])
+    gated = [
+        ((k * shaft_hz <= limit).astype(np.float64) * a, k, p)
+        for k, a, p in zip(ks[~safe], amps[~safe], phases[~safe], strict=True)
+    ]
+    tone_env = speed * (0.7 + 0.3 * load)
+    brush_env = _BRUSH_LEVEL * speed
     carrier_hz = robot.pwm_hz * (1.0 + 0.002 * unit_rng.normal())
-    if carrier_hz < 0.46 * sr and np.any(drive.torque[wheel] != 0):
-        carrier = frac_phase((carrier_hz * drive.block_time + pwm_offset)[None, :], BLOCK, drive.n)[0]
-        tmp = np.cos(np.float32(2.0 * np.pi) * carrier)
-        if carrier_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr:
-            elec = drive.phase(wheel, robot.gear_ratio * robot.motor_pole_pairs)
-            side = np.cos(np.float32(4.0 * np.pi) * elec)
-            side *= np.float32(0.5)
-            side += np.float32(1.0)
-            tmp *= side
-        tmp *= drive.ramp(_PWM_LEVEL * np.minimum(np.abs(drive.torque[wheel]) / 0.3, 4.0))
+    pwm = carrier_hz < 0.46 * sr and bool(np.any(drive.torque[wheel] != 0))
+    sidebands = carrier_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
+    carrier_cycles = carrier_hz * drive.block_time + pwm_offset
+    pwm_env = _PWM_LEVEL * load
+    comm_mult = robot.gear_ratio * 2 * robot.motor_pole_pairs
+    elec_mult = robot.gear_ratio * robot.motor_pole_pairs
+    out = np.empty(drive.n, dtype=np.float32)
+    for span in drive.spans():
+        a, b = span
+        shaft = drive.phase(wheel, robot.gear_ratio, span)
+        tonal = wavetable(shaft, table)
+        for gate, k, ph in gated:
+            tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
+            tone *= drive.ramp(gate, span)
+            tonal += tone
+        tonal *= drive.ramp(tone_env, span)
+        # Brush noise, modulated at the commutation rate (2 x pole pairs per shaft revolution).
+        tmp = np.cos(np.float32(2.0 * np.pi) * drive.phase(wheel, comm_mult, span))
+        tmp *= np.float32(0.4)
+        tmp += np.float32(1.0)
+        tmp *= brush_noise[a:b]
+        tmp *= drive.ramp(brush_env, span)
         tonal += tmp
-    return tonal
+        if pwm:
+            # PWM carrier with sidebands at carrier +- 2 x electrical frequency.
+            b0, b1 = a // BLOCK, -(-b // BLOCK)
+            carrier = frac_phase(carrier_cycles[None, b0 : b1 + 1], BLOCK, b - a)[0]
+            tmp = np.cos(np.float32(2.0 * np.pi) * carrier)
+            if sidebands:
+                side = np.cos(np.float32(4.0 * np.pi) * drive.phase(wheel, elec_mult, span))
+                side *= np.float32(0.5)
+                side += np.float32(1.0)
+                tmp *= side
+            tmp *= drive.ramp(pwm_env, span)
+            tonal += tmp
+        out[a:b] = tonal
+    return out

@@ -1,7 +1,8 @@
 """`render(trace, config, seed) -> Audio`: every source, spatialised at the two microphones, and the mix.
 
 Levels: the robot's sound is scaled so that its unit's reference drive (straight at
-`config.reference_speed` on concrete, motor and rolling sound only) has RMS `reference_level_dbfs`; this
+`config.reference_speed` on concrete at the typical torque `drive.reference_torque`, motor and rolling
+sound only) has RMS `reference_level_dbfs`; this
 fixed, per-unit reference is the "mean RMS of the unit" against which the environment is set to
 `snr_db` (as MIMII / ToyADMOS2 mix at a fixed level per machine, not per clip), so a loud collision never
 turns the background down.
@@ -17,11 +18,12 @@ import numpy as np
 from sim.trace import RobotInfo, Trace
 from synth_audio import ambience as amb
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
-from synth_audio.drive import Drive, build_drive, rolling_torque
-from synth_audio.dsp import add_at, fft_convolve, rms, shaped_noise, white
+from synth_audio.drive import Drive, build_drive, reference_torque
+from synth_audio.dsp import add_at, noise_loop, rms, white
 from synth_audio.faults import fault_sound
 from synth_audio.impacts import impact, scrape
 from synth_audio.motor import motor_wheel
+from synth_audio.reverb import Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
 from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
 from synth_audio.transients import transient
@@ -58,8 +60,8 @@ def _robot_buses(drive: Drive, surface: str, seed: int, trace: Trace | None) -> 
     buses = {name: np.zeros((w + 1, n), dtype=np.float32) for name in ("motor", "rolling")}
     noise_rng = _rng(seed, "noise")
     spec = SURFACES[surface]
-    road = shaped_noise(noise_rng, n, sr, spec.points_hz, spec.gains_db)
-    brush = shaped_noise(noise_rng, n, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
+    road = noise_loop(noise_rng, n, sr, spec.points_hz, spec.gains_db)
+    brush = noise_loop(noise_rng, n, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
     roll_rng = _rng(seed, "rolling")
     motor_rng = _rng(seed, "motor")
     for i in range(w):
@@ -151,7 +153,7 @@ def reference_rms(robot: RobotInfo, config: AudioConfig) -> float:
     omega = config.reference_speed / np.asarray(robot.wheel_radius, dtype=np.float64)
     angle = t[:, None] * omega[None, :]
     speed = np.broadcast_to(omega, (t.size, w))
-    torque = np.full((t.size, w), rolling_torque(robot))
+    torque = np.full((t.size, w), reference_torque(robot))
     drive = build_drive(robot, t, angle, speed, torque, n, sr)
     buses = _robot_buses(drive, _REFERENCE_SURFACE, 0, None)
     delays, gains = point_gains(
@@ -227,14 +229,14 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     stems["impacts"] = impacts
     indoor = trace.environment == "indoor"
     reverb = indoor and config.rt60_s > 0
-    ir = amb.room_ir(config.rt60_s, sr, _rng(seed, "room")) if reverb else None
-    if ir is not None:
+    room = Room(config.rt60_s, sr, n, _rng(seed, "room")) if reverb else None
+    if room is not None:
         dry = np.zeros(n, dtype=np.float32)
         for part in stems.values():
             dry += part[0]
             dry += part[1]
         send = dry * np.float32(0.5 * 10.0 ** (config.room_send_db / 20.0))
-        stems["room"] = fft_convolve(send, ir, n)
+        stems["room"] = room.apply(send)
     if config.ambience:
         scene = amb.Scene(
             n, sr, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),
@@ -245,8 +247,8 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz)
         else:
             env, env_send = amb.outdoor(scene, env_rng, config.bird_rate_hz)
-        if ir is not None and env_send.size:
-            env += fft_convolve(env_send, ir, n)
+        if room is not None and env_send.size:
+            env += room.apply(env_send)
         level = rms(env)
         target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
         if level > 0:

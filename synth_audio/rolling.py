@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from synth_audio.drive import NOMINAL_SPEED, Drive
-from synth_audio.dsp import damped_modes, harmonic_table, overlap_add, wavetable, white
+from synth_audio.dsp import damped_modes, harmonic_table, overlap_add_into, wavetable, white
 
 
 @dataclass(frozen=True)
@@ -59,11 +59,17 @@ def rolling_wheel(
 ) -> np.ndarray:
     """Mono rolling sound of one wheel: shaped noise, tread tone and grain clicks, float32 (n,)."""
     robot = drive.robot
-    out = noise * drive.ramp(surface.level * speed_law(drive, wheel, 1.2))
-    if surface.tread > 0:
-        tone = wavetable(drive.phase(wheel, float(robot.tread_blocks)), _TREAD_TABLE)
-        tone *= drive.ramp(surface.tread * speed_law(drive, wheel, 1.0))
-        out += tone
+    out = np.empty(drive.n, dtype=np.float32)
+    noise_env = surface.level * speed_law(drive, wheel, 1.2)
+    tread_env = surface.tread * speed_law(drive, wheel, 1.0)
+    for span in drive.spans():
+        a, b = span
+        part = noise[a:b] * drive.ramp(noise_env, span)
+        if surface.tread > 0:
+            tone = wavetable(drive.phase(wheel, float(robot.tread_blocks), span), _TREAD_TABLE)
+            tone *= drive.ramp(tread_env, span)
+            part += tone
+        out[a:b] = part
     if surface.grain_per_m > 0:
         distance = drive.speed_mps[wheel][:-1] * np.diff(drive.block_time)
         pos, amp = poisson_events(rng, distance * surface.grain_per_m, drive.n)
@@ -72,7 +78,7 @@ def rolling_wheel(
         click_len = max(int(0.003 * drive.sample_rate), 8)
         click = white(rng, click_len) * np.exp(-np.arange(click_len) / (0.0006 * drive.sample_rate))
         click -= np.float32(np.mean(click))
-        out += overlap_add(drive.n, pos, amp, click.astype(np.float32))
+        overlap_add_into(out, pos, amp, click.astype(np.float32))
     return out
 
 
@@ -98,4 +104,6 @@ def chassis_rattle(drive: Drive, surface: Surface, rng: np.random.Generator) -> 
     amp *= _RATTLE_LEVEL * np.interp(pos / sr, drive.block_time, level)
     length = int(0.12 * sr)
     kernel = damped_modes(_CHASSIS_HZ, _CHASSIS_T60, _CHASSIS_AMP, np.zeros(4), sr, length)
-    return overlap_add(drive.n, pos, amp, kernel)
+    out = np.zeros(drive.n, dtype=np.float32)
+    overlap_add_into(out, pos, amp, kernel)
+    return out

@@ -23,8 +23,8 @@ KINDS: dict[str, Material] = {
 }  # fmt: skip
 """Every kind in `sim.vocab.TRANSIENT_KINDS`: the tyre/floor-feature contact character."""
 
-TRANSIENT_SCALE = 2.5
-"""Amplitude per (N s)^0.75 of vertical impulse (same scale as collision impacts)."""
+TRANSIENT_SCALE = 1.2
+"""Amplitude per sqrt(N s) of vertical impulse (the same law and scale as collision impacts)."""
 
 
 def transient(

@@ -80,7 +80,7 @@ def transients(
 def make_trace(
     duration: float = 2.0,
     wheel_speed: float | Callable[[np.ndarray], np.ndarray] = 10.0,
-    torque: float = 0.05,
+    torque: float = 0.7,
     environment: str = "indoor",
     surface: str = "tile",
     contact_events: ContactEvents | None = None,

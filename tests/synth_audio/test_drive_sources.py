@@ -31,7 +31,7 @@ def test_motor_fundamental_tracks_a_speed_ramp(quiet: AudioConfig) -> None:
     sr, frame = 44100, 11025
     for start in range(0, motor.size - frame, frame):
         mid = (start + frame / 2) / sr
-        expected = speed(np.array(mid)) / (2 * np.pi) * trace.robot.gear_ratio
+        expected = float(speed(np.array(mid))) / (2 * np.pi) * trace.robot.gear_ratio
         found = peak_frequency(motor[start : start + frame], sr, 0.75 * expected, 1.25 * expected)
         assert abs(found - expected) < 3.0, (mid, found, expected)
 

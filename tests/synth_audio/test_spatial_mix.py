@@ -9,7 +9,7 @@ from scipy.signal import correlate
 from signal_oracles import rms
 
 from synth_audio import AudioConfig, render
-from synth_audio.drive import rolling_torque
+from synth_audio.drive import reference_torque
 
 SR = 44100
 
@@ -46,7 +46,7 @@ def test_measured_snr_equals_requested(environment: str, snr: float) -> None:
     config = AudioConfig(snr_db=snr, stems=True, mic_noise_dbfs=float("-inf"))
     base = make_trace(2.0, config.reference_speed / 0.06, environment=environment, surface="concrete")
     trace = make_trace(
-        2.0, config.reference_speed / 0.06, torque=rolling_torque(base.robot), environment=environment,
+        2.0, config.reference_speed / 0.06, torque=reference_torque(base.robot), environment=environment,
         surface="concrete",
     )  # fmt: skip
     audio = render(trace, config, seed=7)

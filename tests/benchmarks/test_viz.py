@@ -264,3 +264,38 @@ def test_cli_writes_a_recording_and_reports_errors(
     assert _rows(out)["/detector/score:Scalars:scalars"] == 3
     assert main(["viz", "--data", str(dataset), "--episode", "missing-000", "--save", str(out)]) == 2
     assert "msvdd-bench viz: error: episode folder not found" in capsys.readouterr().err
+
+
+def test_generated_episode_scores_match_the_evaluation_windows(tiny_dataset: Path, tmp_path: Path) -> None:
+    """On a real generated fault episode, the viewer's score at END time s + 2 equals the score the
+    evaluation gives the dataset's window starting at s (same decimation, framing and detector)."""
+    from benchmarks.dataset import load_window_rows, open_dataset
+
+    data = open_dataset(tiny_dataset)
+    train, _ = data.load_windows("train")
+    model = save_detector(
+        make("iforest-early", seed=0, scale="tiny").fit(train), "iforest-early", tmp_path / "m"
+    )
+    rows = [r for r in data.rows("test") if r.kind == "mechanical"]
+    assert rows, "the tiny preset has fault windows"
+    episode_id = rows[0].episode
+    rows = [r for r in rows if r.episode == episode_id]
+    out = log_episode(tiny_dataset, episode_id, model_dir=model, save=tmp_path / "real.rrd")
+    assert out is not None
+    windows, _ = load_window_rows(tiny_dataset, rows)
+    from benchmarks.methods import load_detector
+
+    expected = load_detector(model)[1].score(windows)
+    t, score = _column(out, "/detector/score", "scalars")
+    for row, value in zip(rows, expected, strict=True):
+        hit = np.flatnonzero(np.isclose(t, row.start_s + 2.0))
+        assert hit.size == 1, row
+        assert score.ravel()[hit[0]] == pytest.approx(value, rel=1e-9)
+    episode = read_episode(tiny_dataset / episode_id)
+    counts = _rows(out)
+    assert counts["/signals/imu/vel_z:Scalars:scalars"] == episode.imu_time.size
+    assert (
+        counts["/detector/score:Scalars:scalars"] == window_starts(episode.imu_time.size / IMU_RATE, 0.5).size
+    )
+    wheel = episode.trace().robot.wheel_names[rows[0].wheel]
+    assert counts[f"/world/robot/wheels/{wheel}/tyre:Cylinders3D:colors"] >= 2  # turns red at the onset

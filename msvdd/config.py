@@ -109,7 +109,7 @@ class MSVDDConfig:
     @classmethod
     def tiny(cls, **overrides: Any) -> Self:
         """A small, fast setting for tests and smoke runs (seconds on a CPU core for ~100 windows)."""
-        base = cls(d=8, s=8, batch_size=32, epochs=3, lr=3e-3, mcd_trials=10, progress=False)
+        base = cls(d=8, s=8, batch_size=32, epochs=5, lr=1e-3, mcd_trials=10, progress=False)
         return dataclasses.replace(base, **overrides)
 
     def to_dict(self) -> dict[str, Any]:

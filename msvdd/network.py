@@ -6,8 +6,8 @@ Shapes (defaults, d = 32, s = 32):
   one per 90 audio samples (20.4 ms).
 - imu (N, 400) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM layers) -> (N, 50, d) tokens.
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
-  (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, mean-pooled,
-  summed and projected to s. The ablation variants concatenate, add or multiply the pooled encoder features.
+  (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
+  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 98 tokens), summed and projected to s. The ablation variants concatenate, add or multiply the pooled encoder features.
 - `AudioDecoder` (six transposed convolutions) and `ImuDecoder` (LSTM layers) reconstruct the inputs from the
   encoders' token sequences.
 """
@@ -59,6 +59,11 @@ def _conv_padding(stride: int) -> tuple[int, int]:
     """(kernel, padding) so that a convolution maps length L (divisible by stride) to L / stride."""
     pad = max(1, stride // 2 + 1)
     return stride + 2 * pad, pad
+
+
+def _pool(tokens: torch.Tensor) -> torch.Tensor:
+    """(N, T, d) -> (N, d): mean + max over the tokens (the max keeps short transients such as impacts)."""
+    return tokens.mean(dim=1) + tokens.amax(dim=1)
 
 
 class AudioEncoder(nn.Module):
@@ -199,12 +204,12 @@ class Fusion(nn.Module):
             tokens = audio_tokens if audio_tokens is not None else imu_tokens
             if tokens is None:
                 raise ValueError("Fusion needs at least one token sequence")
-            return FusionOutput(z=self.project(tokens.mean(dim=1)), fused_a=None, fused_i=None)
+            return FusionOutput(z=self.project(_pool(tokens)), fused_a=None, fused_i=None)
         if self.audio_queries_imu is not None and self.imu_queries_audio is not None:
-            z_ia = self.audio_queries_imu(audio_tokens, imu_tokens).mean(dim=1)
-            z_ai = self.imu_queries_audio(imu_tokens, audio_tokens).mean(dim=1)
+            z_ia = _pool(self.audio_queries_imu(audio_tokens, imu_tokens))
+            z_ai = _pool(self.imu_queries_audio(imu_tokens, audio_tokens))
             return FusionOutput(z=self.project(z_ia + z_ai), fused_a=z_ia, fused_i=z_ai)
-        z_a, z_i = audio_tokens.mean(dim=1), imu_tokens.mean(dim=1)
+        z_a, z_i = _pool(audio_tokens), _pool(imu_tokens)
         if self.kind == "concat":
             fused = torch.cat([z_a, z_i], dim=1)
         elif self.kind == "sum":
@@ -225,9 +230,9 @@ class NetOutput:
     imu_tokens: torch.Tensor | None
     """(N, T_I, d) IMU encoder tokens."""
     z_a: torch.Tensor | None
-    """(N, d) mean-pooled audio encoder feature."""
+    """(N, d) pooled (mean + max) audio encoder feature."""
     z_i: torch.Tensor | None
-    """(N, d) mean-pooled IMU encoder feature."""
+    """(N, d) pooled (mean + max) IMU encoder feature."""
     fused_a: torch.Tensor | None
     """(N, d) pooled audio branch after cross-attention (z_IA)."""
     fused_i: torch.Tensor | None
@@ -264,8 +269,8 @@ class FusionNet(nn.Module):
             z=fused.z,
             audio_tokens=a_tok,
             imu_tokens=i_tok,
-            z_a=None if a_tok is None else a_tok.mean(dim=1),
-            z_i=None if i_tok is None else i_tok.mean(dim=1),
+            z_a=None if a_tok is None else _pool(a_tok),
+            z_i=None if i_tok is None else _pool(i_tok),
             fused_a=fused.fused_a,
             fused_i=fused.fused_i,
             audio_rec=a_rec,

@@ -1,0 +1,334 @@
+"""`MSVDD`: the paper's detector (Algorithm 1) behind the shared `Detector` contract.
+
+fit: z-score statistics from the training windows; train the network with
+alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
+and Sigma by MCD over the embeddings of the whole training split, the training means of D and L_Rec, and the
+threshold = the `quantile` of the training scores delta = D + w (mean_D / mean_Rec) L_Rec. No test label is
+ever seen. With `use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD
+around a fixed centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Self
+
+import numpy as np
+import torch
+from torch import nn
+
+from msvdd.config import MSVDDConfig
+from msvdd.contract import WindowError, Windows
+from msvdd.losses import batch_statistics, covariance_regulariser, reconstruction_loss, svdd_loss
+from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
+from msvdd.network import FusionNet, NetOutput
+from msvdd.preprocess import Normalizer, to_tensors
+from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
+
+FORMAT_VERSION = 1
+"""Version of the file written by `MSVDD.save`; `load` refuses any other."""
+_FORMAT_NAME = "msvdd-model"
+_INFER_BATCH = 256
+
+
+class ModelFormatError(ValueError):
+    """A model file is not an M-SVDD file of the supported format version."""
+
+
+class NotFittedError(RuntimeError):
+    """The detector is used before `fit` (or `load`)."""
+
+
+@dataclass(frozen=True)
+class LossTerms:
+    """The loss of one batch and its parts."""
+
+    total: torch.Tensor
+    """alpha1 * svdd + alpha2 * rec + alpha3 * reg."""
+    svdd: torch.Tensor
+    """Soft-boundary SVDD term."""
+    rec: torch.Tensor
+    """Mean reconstruction loss (0 without the reconstruction branch)."""
+    reg: torch.Tensor
+    """Covariance regulariser (0 for Euclidean SVDD)."""
+
+
+class _Module(nn.Module):
+    """The network plus the learnable radius R and the (Euclidean mode) fixed centre."""
+
+    def __init__(self, config: MSVDDConfig) -> None:
+        super().__init__()
+        self.net = FusionNet(config)
+        self.center: torch.Tensor
+        self.radius = nn.Parameter(torch.tensor(float(np.sqrt(config.s))))
+        self.register_buffer("center", torch.zeros(config.s))
+
+
+class MSVDD:
+    """Mahalanobis SVDD with audio-IMU fusion. `MSVDD(MSVDDConfig.paper()).fit(train)`."""
+
+    threshold_: float
+
+    def __init__(self, config: MSVDDConfig | None = None) -> None:
+        self.config = config or MSVDDConfig()
+        self.device = resolve_device(self.config.device)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self.config.seed)
+            self.module = _Module(self.config).to(self.device)
+        self.normalizer: Normalizer | None = None
+        self.mu_: torch.Tensor | None = None
+        self.sigma_: torch.Tensor | None = None
+        self.mean_d_ = 1.0
+        self.mean_rec_ = 1.0
+        self.threshold_ = float("nan")
+        self.history_: TrainResult | None = None
+        self._mcd_calls = 0
+
+    # ---------------------------------------------------------------- training
+
+    def fit(self, train: Windows, val: Windows | None = None) -> Self:
+        """Fit on nominal `train` windows; `val` (nominal) selects the best epoch, else a held-out split.
+
+        Raises:
+            WindowError: not a `Windows` batch.
+            ValueError: fewer training windows than a batch or the final MCD needs.
+        """
+        cfg = self.config
+        _check_windows(train, "train")
+        fit_part = train
+        if val is None and cfg.val_fraction > 0:
+            tr, va = split_train_val(len(train), cfg.val_fraction, cfg.seed)
+            fit_part, val = train.subset(tr), train.subset(va)
+        elif val is not None:
+            _check_windows(val, "val")
+        self._check_sizes(len(fit_part), 0 if val is None else len(val))
+        self.normalizer = Normalizer.fit(fit_part)
+        train_t = self._tensors(fit_part)
+        val_t = None if val is None or len(val) == 0 else self._tensors(val)
+        if not cfg.use_mahalanobis:
+            self._init_center(train_t)
+        self._mcd_calls = 0
+        self.history_ = train_network(
+            self.module, self._loss, train_t, val_t, cfg, val_loss_fn=self._val_loss
+        )
+        self._finalise(train_t)
+        return self
+
+    def _check_sizes(self, n_train: int, n_val: int) -> None:
+        cfg = self.config
+        if n_train < cfg.batch_size:
+            raise ValueError(
+                f"{n_train} training windows (after the validation split); at least batch_size="
+                f"{cfg.batch_size} are needed"
+            )
+        if cfg.use_mahalanobis:
+            try:
+                support_size(n_train, cfg.s, cfg.mcd_support_fraction)
+                if n_val:
+                    support_size(min(n_val, cfg.batch_size), cfg.s, cfg.mcd_support_fraction)
+            except MCDError as err:
+                raise ValueError(f"too few windows for the MCD in s={cfg.s} dimensions: {err}") from err
+
+    def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
+        if self.normalizer is None:
+            raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
+        return to_tensors(batch, self.normalizer, self.config.smooth_window, self.config.smooth_polyorder)
+
+    def _init_center(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
+        """Euclidean mode: c = mean initial embedding, entries near 0 pushed to +-eps (Ruff et al.)."""
+        z = self._embed_tensors(train_t).mean(dim=0)
+        eps = self.config.eps
+        z = torch.where(z.abs() < eps, torch.where(z < 0, -eps, eps), z)
+        self.module.center.copy_(z.to(self.module.center.dtype))
+
+    def loss_terms(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor, seed: int) -> LossTerms:
+        """The loss of one batch given the network output (public for tests)."""
+        cfg = self.config
+        z = out.z
+        zero = torch.zeros((), device=z.device)
+        if cfg.use_mahalanobis:
+            mu, sigma, _ = batch_statistics(z, cfg.eps, cfg.mcd_support_fraction, seed, cfg.mcd_trials)
+            d2 = mahalanobis_sq(z, mu, sigma)
+            reg = covariance_regulariser(sigma, cfg.eps)
+        else:
+            d2 = ((z - self.module.center) ** 2).sum(dim=1)
+            reg = zero
+        svdd = svdd_loss(d2, self.module.radius, cfg.nu)
+        rec = zero
+        if cfg.use_reconstruction:
+            rec = reconstruction_loss(
+                audio if cfg.use_audio else None, out.audio_rec, imu if cfg.use_imu else None, out.imu_rec
+            ).mean()
+        a1, a2, a3 = cfg.alpha
+        return LossTerms(total=a1 * svdd + a2 * rec + a3 * reg, svdd=svdd, rec=rec, reg=reg)
+
+    def _loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        audio, imu = batch
+        self._mcd_calls += 1
+        seed = self.config.seed * 1_000_003 + self._mcd_calls
+        return self.loss_terms(self.module.net(audio, imu), audio, imu, seed).total
+
+    def _val_loss(self, module: nn.Module, tensors: tuple[torch.Tensor, ...]) -> float:
+        seed = self.config.seed
+
+        def fixed(m: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+            audio, imu = batch
+            return self.loss_terms(self.module.net(audio, imu), audio, imu, seed).total
+
+        return batched_loss(fixed, self.config.batch_size, self.device)(module, tensors)
+
+    def _finalise(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
+        """mu, Sigma over the whole training split; training means; threshold."""
+        cfg = self.config
+        z = self._embed_tensors(train_t).to(torch.float64)
+        if cfg.use_mahalanobis:
+            mcd = min_cov_det(
+                z, cfg.mcd_support_fraction, random_state=cfg.seed, n_trials=cfg.mcd_trials, ridge=cfg.eps
+            )
+            self.mu_ = mcd.location
+            self.sigma_ = mcd.covariance + cfg.eps * torch.eye(cfg.s, dtype=torch.float64, device=z.device)
+        else:
+            self.mu_ = self.module.center.detach().to(torch.float64)
+            self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
+        d, rec = self._components_tensors(train_t)
+        self.mean_d_ = float(d.mean())
+        self.mean_rec_ = float(rec.mean()) if cfg.use_reconstruction else 1.0
+        if not np.isfinite(self.mean_d_) or self.mean_d_ <= 0 or not np.isfinite(self.mean_rec_):
+            raise ValueError(
+                f"training produced degenerate scores (mean D {self.mean_d_}, mean Rec {self.mean_rec_})"
+            )
+        scores = self._delta(d, rec)
+        self.threshold_ = float(np.quantile(scores, cfg.quantile))
+
+    # ---------------------------------------------------------------- scoring
+
+    def _embed_tensors(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
+        outs = []
+        self.module.eval()
+        with torch.no_grad():
+            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
+                outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
+        return torch.cat(outs)
+
+    def _components_tensors(
+        self, tensors: tuple[torch.Tensor, torch.Tensor]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        if self.mu_ is None or self.sigma_ is None:
+            raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
+        cfg = self.config
+        d_all, rec_all = [], []
+        self.module.eval()
+        with torch.no_grad():
+            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
+                a, i = a.to(self.device), i.to(self.device)
+                out = self.module.net(a, i)
+                d_all.append(mahalanobis(out.z.to(torch.float64), self.mu_, self.sigma_).cpu())
+                if cfg.use_reconstruction:
+                    rec = reconstruction_loss(
+                        a if cfg.use_audio else None, out.audio_rec, i if cfg.use_imu else None, out.imu_rec
+                    )
+                    rec_all.append(rec.to(torch.float64).cpu())
+                else:
+                    rec_all.append(torch.zeros(a.shape[0], dtype=torch.float64))
+        return torch.cat(d_all).numpy(), torch.cat(rec_all).numpy()
+
+    def _delta(self, d: np.ndarray, rec: np.ndarray) -> np.ndarray:
+        if not self.config.use_reconstruction:
+            return d.astype(np.float64)
+        return (d + self.config.w * (self.mean_d_ / self.mean_rec_) * rec).astype(np.float64)
+
+    def score_components(self, batch: Windows) -> tuple[np.ndarray, np.ndarray]:
+        """(D (N,) Mahalanobis (or Euclidean) distance, Rec (N,) reconstruction loss; zeros without it)."""
+        _check_windows(batch, "batch")
+        return self._components_tensors(self._tensors(batch))
+
+    def score(self, batch: Windows) -> np.ndarray:
+        """(N,) float64 anomaly scores delta = D + w (mean_D / mean_Rec) Rec; higher = more anomalous."""
+        return self._delta(*self.score_components(batch))
+
+    def predict(self, batch: Windows) -> np.ndarray:
+        """(N,) bool: score > threshold_."""
+        return self.score(batch) > self.threshold_
+
+    def embed(self, batch: Windows) -> np.ndarray:
+        """(N, s) float32 fused embeddings z."""
+        _check_windows(batch, "batch")
+        return self._embed_tensors(self._tensors(batch)).cpu().numpy()
+
+    # ---------------------------------------------------------------- persistence
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write weights, config, normalisation, mu, Sigma, R, training means and threshold to one file."""
+        if self.normalizer is None or self.mu_ is None or self.sigma_ is None:
+            raise NotFittedError("MSVDD is not fitted: nothing to save")
+        payload: dict[str, Any] = {
+            "format": _FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "config": self.config.to_dict(),
+            "state_dict": {k: v.detach().cpu() for k, v in self.module.state_dict().items()},
+            "normalizer": self.normalizer.state(),
+            "mu": self.mu_.cpu(),
+            "sigma": self.sigma_.cpu(),
+            "mean_d": self.mean_d_,
+            "mean_rec": self.mean_rec_,
+            "threshold": self.threshold_,
+        }
+        target = Path(path)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                torch.save(payload, fh)
+            os.replace(tmp, target)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], device: str | None = None) -> Self:
+        """Read a file written by `save` (weights_only); `device` overrides the saved config's device.
+
+        Raises:
+            FileNotFoundError: no such file.
+            ModelFormatError: not an M-SVDD model file, or another format version.
+        """
+        source = Path(path)
+        if not source.is_file():
+            raise FileNotFoundError(f"model file {source} does not exist")
+        try:
+            payload = torch.load(source, map_location="cpu", weights_only=True)
+        except Exception as err:
+            raise ModelFormatError(f"{source} is not a readable M-SVDD model file: {err}") from err
+        if not isinstance(payload, dict) or payload.get("format") != _FORMAT_NAME:
+            raise ModelFormatError(f"{source} is not an M-SVDD model file")
+        version = payload.get("format_version")
+        if version != FORMAT_VERSION:
+            raise ModelFormatError(
+                f"{source} has model format version {version}; this code reads version {FORMAT_VERSION}"
+            )
+        cfg_dict = dict(payload["config"])
+        if device is not None:
+            cfg_dict["device"] = device
+        model = cls(MSVDDConfig.from_dict(cfg_dict))
+        model.module.load_state_dict(payload["state_dict"])
+        model.module.eval()
+        model.normalizer = Normalizer.from_state(payload["normalizer"])
+        model.mu_ = payload["mu"].to(model.device)
+        model.sigma_ = payload["sigma"].to(model.device)
+        model.mean_d_ = float(payload["mean_d"])
+        model.mean_rec_ = float(payload["mean_rec"])
+        model.threshold_ = float(payload["threshold"])
+        return model
+
+    @property
+    def radius_(self) -> float:
+        """The learned soft-boundary radius R."""
+        return float(self.module.radius.detach())
+
+
+def _check_windows(batch: object, name: str) -> None:
+    if not isinstance(batch, Windows):
+        raise WindowError(f"{name} must be a msvdd.Windows batch, got {type(batch).__name__}")

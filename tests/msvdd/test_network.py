@@ -1,0 +1,83 @@
+"""Network shapes, ablation switches, and that cross-attention really mixes the modalities."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from msvdd.config import MSVDDConfig
+from msvdd.network import AUDIO_TOKENS, IMU_TOKENS, CrossAttentionBlock, Fusion, FusionNet
+
+
+def _inputs(n: int = 3, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    g = torch.Generator().manual_seed(seed)
+    return torch.randn(n, 8820, 2, generator=g), torch.randn(n, 400, generator=g)
+
+
+def test_shapes_and_token_sequences() -> None:
+    torch.manual_seed(0)
+    cfg = MSVDDConfig.tiny(d=8, s=6)
+    out = FusionNet(cfg)(*_inputs())
+    assert out.z.shape == (3, 6)
+    assert out.audio_tokens is not None and out.audio_tokens.shape == (3, AUDIO_TOKENS, 8)
+    assert out.imu_tokens is not None and out.imu_tokens.shape == (3, IMU_TOKENS, 8)
+    assert AUDIO_TOKENS > 1 and IMU_TOKENS > 1
+    assert out.z_a is not None and out.z_a.shape == (3, 8)
+    assert out.audio_rec is not None and out.audio_rec.shape == (3, 8820, 2)
+    assert out.imu_rec is not None and out.imu_rec.shape == (3, 400)
+
+
+def test_cross_attention_mixes_modalities() -> None:
+    torch.manual_seed(0)
+    net = FusionNet(MSVDDConfig.tiny()).eval()
+    audio, imu = _inputs()
+    _, imu2 = _inputs(seed=1)
+    with torch.no_grad():
+        a = net(audio, imu)
+        b = net(audio, imu2)
+    assert a.fused_a is not None and b.fused_a is not None
+    # Same audio, different IMU: the audio branch (audio queries IMU) changes...
+    assert float((a.fused_a - b.fused_a).abs().max()) > 1e-4
+    # ...while the audio encoder's own tokens do not.
+    assert a.audio_tokens is not None and b.audio_tokens is not None
+    assert torch.equal(a.audio_tokens, b.audio_tokens)
+
+
+def test_attention_weights_are_not_trivial() -> None:
+    torch.manual_seed(0)
+    block = CrossAttentionBlock(8)
+    q, k = torch.randn(2, 5, 8), torch.randn(2, 7, 8)
+    w = block.attention(q, k)
+    assert w.shape == (2, 5, 7)
+    torch.testing.assert_close(w.sum(-1), torch.ones(2, 5))
+    assert float(w.detach().max()) < 1.0  # a softmax over one key would always be exactly 1
+
+
+@pytest.mark.parametrize("fusion", ["concat", "sum", "product"])
+def test_fusion_variants(fusion: str) -> None:
+    torch.manual_seed(0)
+    out = FusionNet(MSVDDConfig.tiny(fusion=fusion))(*_inputs())
+    assert out.z.shape == (3, 8)
+    assert out.fused_a is None
+
+
+@pytest.mark.parametrize(
+    ("kw", "has_audio", "has_imu"),
+    [({"use_audio": False}, False, True), ({"use_imu": False}, True, False), ({}, True, True)],
+)
+def test_modality_ablations(kw: dict[str, bool], has_audio: bool, has_imu: bool) -> None:
+    torch.manual_seed(0)
+    out = FusionNet(MSVDDConfig.tiny(**kw))(*_inputs())
+    assert (out.audio_rec is not None) == has_audio
+    assert (out.imu_rec is not None) == has_imu
+    assert out.z.shape == (3, 8)
+
+
+def test_without_reconstruction_has_no_decoders() -> None:
+    net = FusionNet(MSVDDConfig.tiny(use_reconstruction=False))
+    assert net.audio_decoder is None and net.imu_decoder is None
+
+
+def test_bad_fusion() -> None:
+    with pytest.raises(ValueError, match="fusion"):
+        Fusion(8, 8, "attention")

@@ -125,6 +125,19 @@ def episode_spectrogram(episode: Episode, config: VizConfig) -> Spectrogram:
     return Spectrogram(times, colorize_db(db, config.spectrogram_range_db, _colour_table()), centres)
 
 
+TICKS_HZ = (100.0, 300.0, 1000.0, 3000.0, 10000.0)
+"""Frequencies marked along the left edge of the spectrogram, Hz."""
+
+
+def frequency_ticks(band_centres: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Image rows (pixel centres, top row 0 = highest band) of the `TICKS_HZ` inside the bands, and labels."""
+    centres = np.asarray(band_centres, dtype=np.float64)
+    inside = [f for f in TICKS_HZ if centres.size and centres[0] <= f <= centres[-1]]
+    band = np.array([int(np.argmin(np.abs(np.log(centres / f)))) for f in inside], dtype=np.float64)
+    rows = centres.size - 1 - band + 0.5
+    return rows, [f"{f / 1000:g} kHz" if f >= 1000 else f"{f:g} Hz" for f in inside]
+
+
 def log_spectrogram(
     rec: rr.RecordingStream, spec: Spectrogram, window_ends: np.ndarray, config: VizConfig
 ) -> None:
@@ -134,6 +147,14 @@ def log_spectrogram(
     stretch = max(1.0, frames / (EPISODE_ASPECT * bands))
     rec.log("spectrogram/episode/image", rr.Transform3D(scale=[1.0, stretch, 1.0]), static=True)
     rec.log("spectrogram/episode/image", rr.Image(spec.image, color_model="RGB"), static=True)
+    rows, labels = frequency_ticks(spec.band_centres)
+    rec.log(
+        "spectrogram/episode/image/ticks",
+        rr.Points2D(
+            np.stack([np.zeros_like(rows), rows], 1), labels=labels, colors=[palette.CURSOR], radii=0.5
+        ),
+        static=True,
+    )
     hop = config.spectrogram_hop_s
     t0 = float(spec.frame_times[0]) if frames else 0.0
     end = float(spec.frame_times[-1]) + hop if frames else 0.0

@@ -185,7 +185,10 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     for key in ("static /world/arena/floor:Boxes3D:half_sizes", "static /world/robot/body:Boxes3D:half_sizes",
                 "static /world/trajectory:LineStrips3D:strips"):  # fmt: skip
         assert key in rows
-    assert RrdReader(recording).blueprints(), "the file carries a default blueprint"
+    reader = RrdReader(recording)
+    blueprint = reader.store(store=reader.blueprints()[0]).summary()
+    views = [line for line in blueprint.splitlines() if "ViewBlueprint:class_identifier" in line]
+    assert len(views) == 13  # 3D, 7 plots, state lanes, 2 spectrograms, event log, audio player
 
 
 def test_scores_threshold_and_detections_match_the_detector(

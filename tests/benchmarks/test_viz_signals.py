@@ -74,6 +74,15 @@ def test_colorize_maps_the_loudest_cell_to_the_top_of_the_table() -> None:
     np.testing.assert_array_equal(img[0, :, 0], [0, 0])
 
 
+def test_frequency_ticks_point_at_the_nearest_band() -> None:
+    from benchmarks.viz.series import frequency_ticks
+
+    centres = np.geomspace(50.0, 5000.0, 5)  # 50, 158, 500, 1581, 5000 Hz; row 0 is the top (5000 Hz)
+    rows, labels = frequency_ticks(centres)
+    assert labels == ["100 Hz", "300 Hz", "1 kHz", "3 kHz"]
+    np.testing.assert_allclose(rows, [3.5, 2.5, 1.5, 0.5])  # 3 kHz is nearer 5 kHz in log frequency
+
+
 def test_run_starts() -> None:
     np.testing.assert_array_equal(run_starts(np.array([0, 0, 1, 1, 1, 0, 2])), [0, 2, 5, 6])
     assert run_starts(np.zeros(0)).size == 0

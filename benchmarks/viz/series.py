@@ -181,6 +181,13 @@ def log_spectrogram(
                                                               channel_datatype="U8")),
         static=True,
     )  # fmt: skip
+    rec.log(
+        "spectrogram/window/ticks",
+        rr.Points2D(
+            np.stack([np.zeros_like(rows), rows], 1), labels=labels, colors=[palette.CURSOR], radii=0.5
+        ),
+        static=True,
+    )
     rec.send_columns(
         "spectrogram/window",
         indexes=[_times(ends)],

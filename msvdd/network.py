@@ -2,12 +2,13 @@
 
 Shapes (defaults, d = 32, s = 32):
 
-- audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 49, d) tokens,
+- audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 98, d) tokens,
   one per 90 audio samples (20.4 ms).
 - imu (N, 400) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM layers) -> (N, 50, d) tokens.
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
   (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
-  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 98 tokens), summed and projected to s. The ablation variants concatenate, add or multiply the pooled encoder features.
+  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 98 tokens), summed and projected
+  to s. The ablation variants concatenate, add or multiply the pooled encoder features.
 - `AudioDecoder` (six transposed convolutions) and `ImuDecoder` (LSTM layers) reconstruct the inputs from the
   encoders' token sequences.
 """

@@ -16,7 +16,7 @@ torch.set_num_threads(1)
 
 @pytest.fixture(scope="session")
 def toy_train() -> Windows:
-    return toy_windows(96, 0, seed=0)[0]
+    return toy_windows(128, 0, seed=0)[0]
 
 
 @pytest.fixture(scope="session")

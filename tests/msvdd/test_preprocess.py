@@ -1,4 +1,4 @@
-"""Decimation (anti-alias oracle: pass-band tones kept, aliasing tones removed), framing, z-score, smoothing."""
+"""Decimation (anti-alias oracle: pass-band tones kept, alias tones removed), framing, z-score, smoothing."""
 
 from __future__ import annotations
 

@@ -1,0 +1,131 @@
+"""The M-SVDD detector end to end on the toy task: separation, non-collapse, persistence, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from sklearn.metrics import roc_auc_score
+
+from msvdd.config import MSVDDConfig
+from msvdd.contract import Detector, WindowError, Windows
+from msvdd.model import FORMAT_VERSION, MSVDD, ModelFormatError, NotFittedError
+from msvdd.synthetic import toy_windows
+
+
+def test_separates_toy_anomalies(toy_train: Windows, toy_test: tuple[Windows, np.ndarray]) -> None:
+    model = MSVDD(MSVDDConfig.tiny()).fit(toy_train)
+    batch, labels = toy_test
+    scores = model.score(batch)
+    assert roc_auc_score(labels, scores) > 0.9
+    # Threshold from training scores only: about 5% of nominal training windows are above it.
+    assert 0.0 < float(np.mean(model.score(toy_train) > model.threshold_)) < 0.2
+
+
+def test_not_collapsed_and_finite(small_model: MSVDD, toy_test: tuple[Windows, np.ndarray]) -> None:
+    scores = small_model.score(toy_test[0])
+    assert scores.dtype == np.float64 and scores.shape == (80,)
+    assert np.all(np.isfinite(scores)) and np.std(scores) > 1e-3 * np.mean(np.abs(scores))
+    assert small_model.mu_ is not None and small_model.sigma_ is not None
+    assert bool(torch.isfinite(small_model.mu_).all()) and bool(torch.isfinite(small_model.sigma_).all())
+    assert np.isfinite(small_model.radius_) and np.isfinite(small_model.threshold_)
+    assert torch.linalg.eigvalsh(small_model.sigma_).min() > 0
+    z = small_model.embed(toy_test[0])
+    assert z.shape == (80, 8) and float(z.std(axis=0).min()) > 0
+
+
+def test_score_is_delta_of_components(small_model: MSVDD, toy_test: tuple[Windows, np.ndarray]) -> None:
+    d, rec = small_model.score_components(toy_test[0])
+    w = small_model.config.w
+    expected = d + w * (small_model.mean_d_ / small_model.mean_rec_) * rec
+    np.testing.assert_allclose(small_model.score(toy_test[0]), expected, rtol=1e-12)
+    np.testing.assert_array_equal(small_model.predict(toy_test[0]), expected > small_model.threshold_)
+
+
+def test_meets_detector_contract(small_model: MSVDD) -> None:
+    assert isinstance(small_model, Detector)
+
+
+def test_save_load_identical(
+    small_model: MSVDD, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    path = tmp_path / "sub" / "model.pt"
+    small_model.save(path)
+    assert [p.name for p in path.parent.iterdir()] == ["model.pt"]  # no temp file left behind
+    loaded = MSVDD.load(path)
+    np.testing.assert_array_equal(loaded.score(toy_test[0]), small_model.score(toy_test[0]))
+    assert loaded.threshold_ == small_model.threshold_
+    assert loaded.config == small_model.config
+
+
+def test_load_refuses_other_format_version(small_model: MSVDD, tmp_path: Path) -> None:
+    path = tmp_path / "model.pt"
+    small_model.save(path)
+    payload = torch.load(path, weights_only=True)
+    payload["format_version"] = FORMAT_VERSION + 1
+    torch.save(payload, path)
+    with pytest.raises(ModelFormatError, match=f"version {FORMAT_VERSION + 1}"):
+        MSVDD.load(path)
+    torch.save({"something": torch.zeros(1)}, path)
+    with pytest.raises(ModelFormatError, match="not an M-SVDD model"):
+        MSVDD.load(path)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        MSVDD.load(tmp_path / "missing.pt")
+
+
+def test_same_seed_same_scores(toy_train: Windows, toy_test: tuple[Windows, np.ndarray]) -> None:
+    cfg = MSVDDConfig.tiny(epochs=1)
+    a = MSVDD(cfg).fit(toy_train).score(toy_test[0])
+    b = MSVDD(cfg).fit(toy_train).score(toy_test[0])
+    np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"use_mahalanobis": False},
+        {"use_reconstruction": False},
+        {"use_audio": False},
+        {"use_imu": False},
+        {"fusion": "product"},
+    ],
+)
+def test_ablations_train_and_score(overrides: dict[str, object], toy_train: Windows) -> None:
+    model = MSVDD(MSVDDConfig.tiny(epochs=1, **overrides)).fit(toy_train)
+    scores = model.score(toy_train.subset(slice(0, 10)))
+    assert np.all(np.isfinite(scores)) and np.std(scores) > 0
+    if overrides.get("use_reconstruction") is False:
+        np.testing.assert_array_equal(scores, model.score_components(toy_train.subset(slice(0, 10)))[0])
+
+
+def test_too_few_windows() -> None:
+    few, _ = toy_windows(20, 0, seed=3)
+    with pytest.raises(ValueError, match="batch_size=32"):
+        MSVDD(MSVDDConfig.tiny()).fit(few)
+    some, _ = toy_windows(40, 0, seed=3)
+    with pytest.raises(ValueError, match="MCD"):
+        MSVDD(MSVDDConfig.tiny(s=16, val_fraction=0.2)).fit(some)
+
+
+def test_bad_input_errors(small_model: MSVDD) -> None:
+    with pytest.raises(WindowError, match="Windows"):
+        small_model.score(np.zeros((2, 8820, 2)))  # type: ignore[arg-type]
+    with pytest.raises(NotFittedError):
+        MSVDD(MSVDDConfig.tiny()).score(toy_windows(2, 0, seed=0)[0])
+
+
+def test_config_validation() -> None:
+    with pytest.raises(ValueError, match="not a true subset"):
+        MSVDDConfig(batch_size=32, s=32)  # the reference code's batch: h = 33 > 32
+    with pytest.raises(ValueError, match="fusion"):
+        MSVDDConfig(fusion="attention")
+    with pytest.raises(ValueError, match="at least one modality"):
+        MSVDDConfig(use_audio=False, use_imu=False)
+    with pytest.raises(ValueError, match="quantile"):
+        MSVDDConfig(quantile=1.5)
+    with pytest.raises(ValueError, match="unknown MSVDDConfig fields: bogus"):
+        MSVDDConfig.from_dict({"bogus": 1})
+    assert MSVDDConfig.from_dict(MSVDDConfig.paper().to_dict()) == MSVDDConfig.paper()
+    assert MSVDDConfig.paper().epochs == 40 and MSVDDConfig.paper().alpha == (1.0, 1.0, 0.001)

@@ -177,19 +177,23 @@ def random_scenario(
     if category == "collision":
         assert obstacle_kind is not None
         _place(rng, obstacle_kind, arena, obstacles, target=True)
+        if not obstacles:
+            raise ScenarioError(
+                f"obstacle_kind = {obstacle_kind!r}: could not be placed in the arena {arena}"
+            )
     for kind in rng.choice(_CLUTTER[environment], size=int(rng.integers(3, 7))):
         _place(rng, str(kind), arena, obstacles, target=False)
 
-    if category == "collision":
-        first, begin = _first_ram(rng, obstacles, arena)
-        rest, _ = _wander(rng, arena, obstacles, duration, begin=np.array([first[-1].x, first[-1].y]))
-        start = (float(begin[0]), float(begin[1]), float(rng.uniform(-math.pi, math.pi)))
-        waypoints = first + rest
-        n_more = min(3, int(duration // 60.0))
-        if n_more:
-            waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_more, start, duration)
+    for _ in range(8):
+        try:
+            waypoints, start = _route(rng, category, obstacles, arena, duration)
+            break
+        except ScenarioError:
+            if len(obstacles) <= (1 if category == "collision" else 0):
+                raise
+            obstacles.pop()  # crowded: drop the last clutter obstacle and draw again
     else:
-        waypoints, start = _wander(rng, arena, obstacles, duration)
+        waypoints, start = _route(rng, category, obstacles, arena, duration)
     route = Route(
         start=start,
         waypoints=tuple(waypoints),
@@ -282,6 +286,26 @@ def _free_point(
     return None
 
 
+def _route(
+    rng: np.random.Generator,
+    category: str,
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+    duration: float,
+) -> tuple[list[Waypoint], tuple[float, float, float]]:
+    """The episode's waypoints and start pose (collision runs: a short drive, a ram, then wandering)."""
+    if category != "collision":
+        return _wander(rng, arena, obstacles, duration)
+    first, begin = _first_ram(rng, obstacles, arena)
+    rest, _ = _wander(rng, arena, obstacles, duration, begin=np.array([first[-1].x, first[-1].y]))
+    start = (float(begin[0]), float(begin[1]), float(rng.uniform(-math.pi, math.pi)))
+    waypoints = first + rest
+    n_more = min(3, int(duration // 60.0))
+    if n_more:
+        waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_more, start, duration)
+    return waypoints, start
+
+
 def _first_ram(
     rng: np.random.Generator, obstacles: list[Obstacle], arena: tuple[float, float]
 ) -> tuple[list[Waypoint], np.ndarray]:
@@ -297,9 +321,13 @@ def _first_ram(
             begin = _free_point(rng, arena, obstacles)
             if begin is None:
                 break
-            if 2.0 <= float(np.linalg.norm(begin - approach)) <= 5.0 and _segment_clear(begin, approach, obstacles, 0.6):
+            if 2.0 <= float(np.linalg.norm(begin - approach)) <= 5.0 and _segment_clear(
+                begin, approach, obstacles, 0.6
+            ):
                 return legs, begin
-    raise ScenarioError(f"obstacle_kind = {obstacles[0].kind!r}: no clear approach found in this arena; try another seed")
+    raise ScenarioError(
+        f"obstacle_kind = {obstacles[0].kind!r}: no clear approach found in this arena; try another seed"
+    )
 
 
 def _wander(
@@ -313,6 +341,8 @@ def _wander(
     start = begin if begin is not None else _free_point(rng, arena, obstacles)
     if start is None:
         raise ScenarioError("arena too crowded: no free start point (reduce obstacles)")
+    # The first leg may leave a point closer to an obstacle than CLEARANCE (a ram's approach point).
+    first_margin = min(CLEARANCE, _clearance(start[None], obstacles) - 0.05)
     points = [start]
     waypoints: list[Waypoint] = []
     planned = 0.0
@@ -324,7 +354,7 @@ def _wander(
         p = _free_point(rng, arena, obstacles)
         if p is None or not 1.2 <= np.linalg.norm(p - points[-1]) <= MAX_LEG:
             continue
-        if not _segment_clear(points[-1], p, obstacles, CLEARANCE):
+        if not _segment_clear(points[-1], p, obstacles, CLEARANCE if len(points) > 1 else first_margin):
             continue
         speed = float(rng.uniform(0.3, 1.4))
         dwell = float(rng.uniform(0.5, 4.0)) if rng.random() < 0.25 else 0.0

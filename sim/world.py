@@ -102,6 +102,8 @@ class World:
     """(W,) dof index of each wheel joint."""
     base_body: int
     """Body id of the robot base."""
+    root_dof: int
+    """First dof of the robot's free joint (3 linear, then 3 angular velocities)."""
     obstacles: tuple[ObstacleRecord, ...]
     """Obstacles (the scenario's, then the four border walls)."""
     obstacle_body: np.ndarray
@@ -122,6 +124,16 @@ def build_world(scenario: Scenario) -> World:
     hfield_data = _add_floor(arena, scenario, surface)
     obstacles = list(scenario.obstacles) + _border_walls(scenario)
     obstacle_bodies = [_add_obstacle(arena, i, ob) for i, ob in enumerate(obstacles)]
+    if hfield_data is not None:
+        # Free obstacles rest on a flat collision plane, not on the heightfield (box-heightfield
+        # contacts are many and costly); the robot touches the heightfield and the obstacles.
+        for i, ob in enumerate(obstacles):
+            if ob.kind in OBSTACLE_MASS:
+                for geom in obstacle_bodies[i].find_all("geom"):
+                    geom.contype, geom.conaffinity = _FREE_OBSTACLE_BITS
+        for geom in robot.model.find_all("geom"):
+            if geom.dclass is None or geom.dclass.dclass != "visual":
+                geom.conaffinity = _ROBOT_AFFINITY
     transients = arena.worldbody.add("body", name="transients")
     for i, tr in enumerate(scenario.transients):
         _add_transient(transients, i, tr.kind, tr.x, tr.y, tr.yaw, tr.length)
@@ -199,6 +211,7 @@ def build_world(scenario: Scenario) -> World:
         wheel_body=wheel_body,
         wheel_dof=wheel_dof,
         base_body=int(base_id),
+        root_dof=int(model.jnt_dofadr[model.joint(prefix + "root/").id]),
         obstacles=records,
         obstacle_body=ob_body,
         obstacle_mocap=np.asarray(model.body_mocapid[ob_body], dtype=np.int64),
@@ -241,8 +254,21 @@ def _add_floor(arena: mjcf.RootElement, scenario: Scenario, surface: Surface) ->
     arena.worldbody.add(
         "geom", name="floor", type="hfield", hfield="ground", pos=[0, 0, -3 * surface.roughness],
         friction=friction, solref=list(surface.solref), rgba=[0.45, 0.5, 0.35, 1],
+        contype=_HFIELD_BITS[0], conaffinity=_HFIELD_BITS[1],
+    )  # fmt: skip
+    arena.worldbody.add(
+        "geom", name="obstacle_floor", type="plane", size=[hx + 1, hy + 1, 0.1], friction=friction,
+        contype=_PLANE_BITS[0], conaffinity=_PLANE_BITS[1], rgba=[0, 0, 0, 0], group=3,
     )  # fmt: skip
     return np.asarray(data, dtype=np.float32).ravel()
+
+
+_HFIELD_BITS = (4, 4)
+_PLANE_BITS = (2, 2)
+_FREE_OBSTACLE_BITS = (2, 3)
+_ROBOT_AFFINITY = 5
+"""Collision bits on rough floors: robot (1, 5) touches heightfield (4, 4), obstacles and transients;
+free obstacles (2, 3) touch the robot and the flat plane (2, 2) but not the heightfield."""
 
 
 def _border_walls(scenario: Scenario) -> list[Obstacle]:

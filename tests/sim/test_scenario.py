@@ -1,0 +1,149 @@
+"""Scenario validation, TOML/dict round trips and randomised scenarios."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from sim import ScenarioError, random_scenario, scenario_presets, vocab
+from sim.robot import asset_path
+from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
+from sim_kit import straight
+
+
+def test_dict_round_trip_is_exact_and_json_able() -> None:
+    sc = random_scenario(5, "collision", duration=90.0, obstacle_kind="pedestrian")
+    data = json.loads(json.dumps(sc.to_dict()))
+    assert Scenario.from_dict(data) == sc
+
+
+def test_fault_duration_inf_round_trips() -> None:
+    sc = straight(faults=(Fault("bearing", 1, 0.5, 1.0),))
+    assert sc.faults[0].duration == math.inf
+    assert Scenario.from_dict(json.loads(json.dumps(sc.to_dict()))) == sc
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "value"),
+    [
+        (lambda: Fault("cracked_rim", 0, 0.5, 1.0), "fault.kind", "cracked_rim"),
+        (lambda: Fault("bearing", 0, 1.5, 1.0), "fault.severity", "1.5"),
+        (lambda: Fault("bearing", 0, -0.1, 1.0), "fault.severity", "-0.1"),
+        (lambda: Fault("bearing", 7, 0.5, 1.0), "fault.wheel", "7"),
+        (lambda: Waypoint(1.0, 0.0, speed=-0.5), "route.waypoint.speed", "-0.5"),
+        (lambda: Obstacle("sofa", 0.0, 0.0), "obstacle.kind", "sofa"),
+        (lambda: Unit(model="hexapod"), "robot.model", "hexapod"),
+    ],
+)
+def test_bad_parts_are_refused_naming_field_value_allowed(change, field: str, value: str) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ScenarioError, match="allowed") as info:
+        change()
+    assert field in str(info.value)
+    assert value in str(info.value)
+
+
+def test_wheel_outside_robot_is_refused() -> None:
+    with pytest.raises(ScenarioError, match=r"faults\[0\]\.wheel = 2 .*0 \.\. 1 for robot diff2"):
+        straight(model="diff2", faults=(Fault("imbalance", 2, 0.5, 1.0),))
+
+
+def test_onset_after_end_is_refused() -> None:
+    with pytest.raises(ScenarioError, match=r"faults\[0\]\.onset = 9\.0 .*allowed: 0 \.\. 6 s"):
+        straight(duration=6.0, faults=(Fault("imbalance", 0, 0.5, 9.0),))
+
+
+def test_obstacle_outside_arena_is_refused() -> None:
+    with pytest.raises(ScenarioError, match=r"obstacles\[0\]\.position = \(20\.0, 0\.0\).*inside the arena"):
+        straight(obstacles=(Obstacle("box", 20.0, 0.0),))
+
+
+def test_unknown_surface_and_wrong_environment_are_refused() -> None:
+    with pytest.raises(ScenarioError, match="surface = 'lava'.*tile"):
+        straight().replace(surface="lava")
+    with pytest.raises(ScenarioError, match=r"surface \(for indoor\) = 'grass'.*tile, carpet, concrete"):
+        straight().replace(surface="grass")
+
+
+def test_unknown_toml_key_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text('name = "x"\nseed = 1\nduration = 5.0\nspeeed = 2\n')
+    with pytest.raises(ScenarioError, match="scenario key = 'speeed'.*allowed: name, seed, duration"):
+        Scenario.from_toml(path)
+    path.write_text(
+        'name = "x"\nseed = 1\nduration = 5.0\n[[faults]]\nkind = "bearing"\nwheel = 0\nseverity = 0.5\nonset = 1.0\nphase = 2\n'
+    )
+    with pytest.raises(ScenarioError, match=r"faults\[0\] key = 'phase'"):
+        Scenario.from_toml(path)
+
+
+def test_missing_toml_file_names_path(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="nope.toml"):
+        Scenario.from_toml(tmp_path / "nope.toml")
+
+
+def test_shipped_example_scenarios_load() -> None:
+    folder = Path(asset_path("scenarios/nominal_indoor.toml")).parent
+    files = sorted(folder.glob("*.toml"))
+    assert len(files) >= 3
+    for path in files:
+        sc = Scenario.from_toml(path)
+        assert sc.name
+
+
+def test_random_scenario_depends_only_on_its_arguments() -> None:
+    a = random_scenario(11, "fault", duration=120.0, fault_kind="bearing")
+    b = random_scenario(11, "fault", duration=120.0, fault_kind="bearing")
+    c = random_scenario(12, "fault", duration=120.0, fault_kind="bearing")
+    assert a == b
+    assert a != c
+    assert a.faults[0].kind == "bearing" and 0.3 <= a.faults[0].severity <= 1.0
+    assert 0.0 < a.faults[0].onset < a.duration
+
+
+@pytest.mark.parametrize("category", ["nominal", "collision", "fault"])
+@pytest.mark.parametrize("duration", [20.0, 340.0])
+def test_random_scenarios_are_valid_for_short_and_long_episodes(category: str, duration: float) -> None:
+    for seed in range(3):
+        sc = random_scenario(seed, category, duration=duration, robot_model="diff2" if seed == 2 else "skid4")
+        assert sc.route.loop and len(sc.route.waypoints) >= 2
+        assert len(sc.transients) >= 2
+        rams = [w for w in sc.route.waypoints if w.ram >= 0]
+        assert (len(rams) >= 1) == (category == "collision")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"category": "crash"}, "category = 'crash'.*nominal, collision, fault"),
+        ({"obstacle_kind": "sofa"}, "obstacle_kind = 'sofa'"),
+        ({"fault_kind": "rust"}, "fault_kind = 'rust'"),
+        ({"wheel": 4}, "wheel = 4.*0 .. 3"),
+        ({"severity": (0.5, 1.2)}, r"severity = \(0.5, 1.2\)"),
+        ({"environment": "moon"}, "environment = 'moon'"),
+        ({"duration": -1.0}, "duration = -1.0"),
+    ],
+)
+def test_random_scenario_refuses_bad_arguments(kwargs: dict, message: str) -> None:  # type: ignore[type-arg]
+    args = {"category": "fault", "duration": 30.0, **kwargs}
+    category = args.pop("category")
+    duration = args.pop("duration")
+    with pytest.raises(ScenarioError, match=message):
+        random_scenario(0, category, duration=duration, **args)
+
+
+def test_presets_cover_every_obstacle_and_fault_kind() -> None:
+    presets = scenario_presets()
+    for kind in vocab.OBSTACLE_KINDS:
+        sc = presets[f"collision_{kind}"](1)
+        assert sc.obstacles[0].kind == kind
+    for kind in vocab.FAULT_KINDS:
+        assert presets[f"fault_{kind}"](1).faults[0].kind == kind
+    assert {"nominal_indoor", "nominal_outdoor"} <= set(presets)
+
+
+def test_route_refuses_ram_at_missing_obstacle() -> None:
+    with pytest.raises(ScenarioError, match=r"route.waypoints\[0\].ram = 2"):
+        straight().replace(route=Route(waypoints=(Waypoint(1.0, 0.0, ram=2),)))

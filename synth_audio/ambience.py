@@ -88,9 +88,8 @@ def _door(rng: np.random.Generator, sr: int) -> np.ndarray:
     return one_pole_lowpass(thud, 900.0, sr) * np.float32(rng.lognormal(0.0, 0.4))
 
 
-def _babble(scene: Scene, rng: np.random.Generator, talkers: int) -> np.ndarray:
+def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarray:
     """Mono distant speech-like babble through a wall: voiced buzz and noise under syllabic envelopes."""
-    n, sr = scene.n, scene.sample_rate
     nb = -(-n // _BLOCK) + 1
     ctrl = sr / _BLOCK
     noise = noise_loop(rng, n, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
@@ -108,8 +107,14 @@ def _babble(scene: Scene, rng: np.random.Generator, talkers: int) -> np.ndarray:
     return sosfilt(sos, out).astype(np.float32)
 
 
-def indoor(scene: Scene, rng: np.random.Generator, door_rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """(2, n) dry indoor ambience and the (n,) mono reverberation send."""
+def indoor(
+    scene: Scene, rng: np.random.Generator, door_rate: float, decimation: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(2, n) dry indoor ambience and the mono reverberation send at sample_rate / decimation.
+
+    Babble and doors are in other rooms: they reach the robot through the reverberant field, which is
+    band-limited, so they are synthesised directly at the reduced rate of the room's impulse response.
+    """
     n, sr = scene.n, scene.sample_rate
     duration = n / sr
     fan = noise_loop(rng, n, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
@@ -121,15 +126,12 @@ def indoor(scene: Scene, rng: np.random.Generator, door_rate: float) -> tuple[np
     for freq, amp in ((mains * 2, 0.08), (mains * 3, 0.04), (blade, 0.12)):
         phase = frac_phase((freq * tb + rng.uniform())[None, :], _BLOCK, n)[0]
         hum += np.float32(amp) * np.sin(np.float32(2 * np.pi) * phase)
-    bed = _diffuse(fan * np.float32(0.6) + hum, 0.3, rng)
-    babble = _babble(scene, rng, int(rng.integers(2, 5))) * np.float32(0.35)
-    send = babble.copy()
-    dry = bed
-    spatialize_into(dry, babble * np.float32(0.3), np.array([1.0, 1.0]), np.array([1.0, 1.0]))
+    dry = _diffuse(fan * np.float32(0.6) + hum, 0.3, rng)
+    low_sr = sr // decimation
+    low_n = -(-n // decimation)
+    send = _babble(low_n, low_sr, rng, int(rng.integers(2, 5))) * np.float32(0.6)
     for t in _event_times(rng, door_rate, duration):
-        door = _door(rng, sr) * np.float32(1.5)
-        _event_into(dry, scene, door * np.float32(0.4), float(t), float(rng.uniform(0, 2 * np.pi)))
-        add_at(send, int(t * sr), door)
+        add_at(send, int(t * low_sr), _door(rng, low_sr) * np.float32(2.5))
     return dry, send
 
 

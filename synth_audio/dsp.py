@@ -9,6 +9,7 @@ from scipy.signal import lfilter
 _INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
 NOISE_PERIOD = 2**18
 """Length of the looped noise beds, samples (5.9 s at 44.1 kHz)."""
+_SPAN = 2**14
 TABLE_SIZE = 8192
 """Points per cycle of the harmonic wavetables."""
 
@@ -198,8 +199,11 @@ def fractional_taps(delay: float) -> tuple[int, np.ndarray]:
 def delay_into(out: np.ndarray, x: np.ndarray, delay: float, gain: float, start: int = 0) -> None:
     """out[start + n] += gain * x delayed by a fractional number of samples (Lagrange, in place)."""
     m, taps = fractional_taps(delay)
-    for k in range(4):
-        add_at(out, start + m + k, x * np.float32(gain * taps[k]))
+    weights = [np.float32(gain * t) for t in taps]
+    for a in range(0, x.shape[0], _SPAN):  # span-wise, so the products stay in cache
+        part = x[a : a + _SPAN]
+        for k in range(4):
+            add_at(out, start + m + k + a, part * weights[k])
 
 
 def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: float) -> np.ndarray:

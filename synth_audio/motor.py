@@ -79,8 +79,8 @@ def motor_wheel(
     sidebands = carrier_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
     carrier_cycles = carrier_hz * drive.block_time + pwm_offset
     pwm_env = _PWM_LEVEL * load
-    comm_mult = robot.gear_ratio * 2 * robot.motor_pole_pairs
-    elec_mult = robot.gear_ratio * robot.motor_pole_pairs
+    comm_mult = 2 * robot.motor_pole_pairs  # commutations per shaft revolution
+    elec_mult = robot.motor_pole_pairs  # electrical cycles per shaft revolution
     out = np.empty(drive.n, dtype=np.float32)
     for span in drive.spans():
         a, b = span
@@ -92,7 +92,7 @@ def motor_wheel(
             tonal += tone
         tonal *= drive.ramp(tone_env, span)
         # Brush noise, modulated at the commutation rate (2 x pole pairs per shaft revolution).
-        tmp = np.cos(np.float32(2.0 * np.pi) * drive.phase(wheel, comm_mult, span))
+        tmp = np.cos(np.float32(2.0 * np.pi * comm_mult) * shaft)
         tmp *= np.float32(0.4)
         tmp += np.float32(1.0)
         tmp *= brush_noise[a:b]
@@ -104,7 +104,7 @@ def motor_wheel(
             carrier = frac_phase(carrier_cycles[None, b0 : b1 + 1], BLOCK, b - a)[0]
             tmp = np.cos(np.float32(2.0 * np.pi) * carrier)
             if sidebands:
-                side = np.cos(np.float32(4.0 * np.pi) * drive.phase(wheel, elec_mult, span))
+                side = np.cos(np.float32(4.0 * np.pi * elec_mult) * shaft)
                 side *= np.float32(0.5)
                 side += np.float32(1.0)
                 tmp *= side

@@ -23,7 +23,7 @@ from synth_audio.dsp import add_at, noise_loop, rms, white
 from synth_audio.faults import fault_sound
 from synth_audio.impacts import impact, scrape
 from synth_audio.motor import motor_wheel
-from synth_audio.reverb import Room
+from synth_audio.reverb import DECIMATION, Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
 from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
 from synth_audio.transients import transient
@@ -244,11 +244,14 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
         )  # fmt: skip
         env_rng = _rng(seed, "ambience")
         if indoor:
-            env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz)
+            env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz, DECIMATION)
         else:
             env, env_send = amb.outdoor(scene, env_rng, config.bird_rate_hz)
-        if room is not None and env_send.size:
-            env += room.apply(env_send)
+        if env_send.size and room is not None:
+            env += room.apply_low(env_send)
+        elif env_send.size:  # no reverberation asked for: the distant sources arrive dry
+            t_low = np.arange(env_send.size) * DECIMATION
+            env += np.interp(np.arange(n), t_low, env_send).astype(np.float32)[None, :]
         level = rms(env)
         target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
         if level > 0:

@@ -56,6 +56,15 @@ class Room:
     def apply(self, send: np.ndarray) -> np.ndarray:
         """(2, n) reverberation of a mono full-rate send."""
         s = sfft.rfft(send.astype(np.float32, copy=False), self.nfft)[: self.bins]
+        return self._wet(s)
+
+    def apply_low(self, send: np.ndarray) -> np.ndarray:
+        """(2, n) full-rate reverberation of a mono send sampled at sample_rate / DECIMATION."""
+        s = sfft.rfft(send.astype(np.float32, copy=False), self.nfft // DECIMATION)[: self.bins]
+        s *= np.float32(DECIMATION)
+        return self._wet(s)
+
+    def _wet(self, send_spectrum: np.ndarray) -> np.ndarray:
         full = np.zeros((2, self.nfft // 2 + 1), dtype=np.complex64)
-        full[:, : self.bins] = self.spectrum * s[None, :]
+        full[:, : self.bins] = self.spectrum * send_spectrum[None, :]
         return sfft.irfft(full, self.nfft, axis=-1)[:, : self.n].astype(np.float32, copy=False)

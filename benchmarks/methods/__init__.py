@@ -7,6 +7,7 @@ save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("
 
 from benchmarks.methods import deep as _deep
 from benchmarks.methods import deep_if as _deep_if
+from benchmarks.methods import msvdd_family as _msvdd
 from benchmarks.methods import naive as _naive
 from benchmarks.methods import shallow as _shallow
 from benchmarks.methods.base import SCALES, THRESHOLD_PERCENTILE
@@ -22,6 +23,7 @@ from benchmarks.methods.registry import (
     spec,
 )
 
+_msvdd.register_methods()
 _naive.register_methods()
 _shallow.register_methods()
 _deep.register_methods()

@@ -198,3 +198,12 @@ def test_shallow_subsampling_is_recorded_and_survives_save(tmp_path: Path) -> No
     assert det.training_rows == [(30, 20)]
     det.save(tmp_path / "m.npz")
     assert ShallowDetector.load(tmp_path / "m.npz").training_rows == [(30, 20)]
+
+
+def test_registry_lists_every_family_of_the_paper() -> None:
+    by_family = {f: methods.names(f) for f in methods.FAMILIES}
+    assert sorted(n for v in by_family.values() for n in v) == sorted(methods.names())
+    assert {"msvdd", "msvdd-euclidean", "msvdd-s64"} <= set(by_family["msvdd"])
+    assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if"}
+    assert len(by_family["shallow"]) == 6
+    assert methods.make("msvdd-s64", seed=0, scale="paper").config.batch_size == 128  # type: ignore[attr-defined]

@@ -129,6 +129,8 @@ def test_compute_metrics_end_to_end_and_json() -> None:
     agg = metrics.aggregate([m, m])
     assert agg["auc"] == (m.auc, 0.0)
     assert agg["auc_wall"][0] == pytest.approx(m.auc_by_sub_kind["wall"])
+    rows = metrics.summary_table({"x": [m, m]}, ["auc", "delay_mean_s"])
+    assert rows == [["x", f"{m.auc:.3f} ± 0.000", "n/a"]]
 
 
 def test_compute_metrics_refuses_a_test_set_without_anomalies() -> None:

@@ -75,6 +75,7 @@ class Engine:
         self._states = np.zeros((1, CONTROL_STEPS, self.nstate))
         self._runner = mj_rollout.Rollout(nthread=0)
         self._models = [m]
+        self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
         self._datas = [self.data]
         self._ped_track = np.zeros((0, 0, 3))
         info = world.robot.info
@@ -162,29 +163,36 @@ class Engine:
         self._ped_track = np.concatenate([self._ped_track, pedestrian_positions(peds, times)])
 
     def _apply_faults(self, control: np.ndarray, times: np.ndarray) -> None:
+        """Fault wrenches for the period: hub forces act on the chassis at the wheel centre (the tyre and
+        ground take the wheel's share), motor torques on the wheel joint (reacted by the chassis)."""
         k = len(times)
         m = self.model
         sl = self.world.sensors
         sd = self.sensordata
         quat = sd[sl.base_quat : sl.base_quat + 4]
         forward, lateral = _axes(quat)
+        up = np.cross(forward, lateral)
+        rot = np.stack([forward, lateral, up], axis=1)
+        base_pos = sd[sl.base_pos : sl.base_pos + 3]
+        com = base_pos + rot @ self._base_ipos
         control[:, m.nu : m.nu + m.nv] = 0.0
         xf = control[:, self._xfrc0 : self._mocap0].reshape(k, m.nbody, 6)
         xf[:] = 0.0
         steps = self.dt * np.arange(k)
+        base = self.world.base_body
         for forcing in self.forcings:
             wi = forcing.fault.wheel
             angle = float(sd[sl.wheel_angle + wi])
             omega = float(sd[sl.wheel_speed + wi])
             torque = float(sd[sl.wheel_torque + wi])
             theta = angle + omega * steps
-            body = int(self.world.wheel_body[wi])
-            dof = int(self.world.wheel_dof[wi])
             wrench = np.zeros((k, 6))
             qf = np.zeros(k)
             forcing.apply(times, theta, omega, forward, lateral, torque, wrench, qf, self.dt)
-            xf[:, body, :] += wrench
-            control[:, m.nu + dof] += qf
+            hub = base_pos + rot @ self.world.robot.info.wheel_pos_body[wi]
+            xf[:, base, :3] += wrench[:, :3]
+            xf[:, base, 3:] += wrench[:, 3:] + np.cross(hub - com, wrench[:, :3])
+            control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
 
 
 def _axes(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

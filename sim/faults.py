@@ -38,11 +38,11 @@ BEARING_CONTACT_ANGLE = 0.0
 
 IMBALANCE_ME = 0.03
 """Eccentric mass x radius at severity 1, kg m."""
-FLAT_SPOT_FORCE = 90.0
+FLAT_SPOT_FORCE = 200.0
 """Peak vertical force of the flat-spot strike at severity 1 and full speed, N."""
 FLAT_SPOT_ARC = 0.5
 """Arc of the flat, rad."""
-BEARING_IMPULSE = 0.12
+BEARING_IMPULSE = 0.25
 """Vertical impulse per ball pass at severity 1 and full speed, N s."""
 LOOSE_WOBBLE_TORQUE = 3.0
 """Wobble yaw torque amplitude at severity 1, N m."""
@@ -156,7 +156,7 @@ class FaultForcing:
             xfrc[:, :3] += (f * np.cos(theta))[:, None] * forward + (f * np.sin(theta))[:, None] * _UP
         elif kind == "flat_spot":
             phase = np.mod(theta, 2 * np.pi) / FLAT_SPOT_ARC
-            pulse = np.where(phase < 1.0, -np.sin(2 * np.pi * phase), 0.0)
+            pulse = np.where(phase < 1.0, np.sin(np.pi * phase), 0.0)
             xfrc[:, 2] += on * s * FLAT_SPOT_FORCE * speed * pulse
         elif kind == "bearing":
             passes = np.floor(self.order * theta / (2 * np.pi))

@@ -1,0 +1,126 @@
+"""Each fault leaves its signature in the trace, growing with severity; zero severity equals no fault."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from sim_kit import straight
+
+from sim import Fault, Trace, simulate
+from sim.faults import bpfo_order
+from sim.trace import _flatten
+
+SPEED = 1.0
+WINDOW = (2.0, 9.0)
+
+
+@functools.cache
+def _run(kind: str, severity: float) -> Trace:
+    faults = (Fault(kind, 0, severity, 1.0),) if kind else ()
+    return simulate(straight(duration=9.0, speed=SPEED, faults=faults))
+
+
+def _amplitude(signal: np.ndarray, rate: float, freq: float, width: float = 0.25) -> float:
+    """Peak one-sided amplitude of `signal` within `freq` +- `width` Hz (Hann window)."""
+    x = signal - signal.mean()
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x)))) * 2 / (0.5 * len(x))
+    f = np.fft.rfftfreq(len(x), 1 / rate)
+    band = (f > freq - width) & (f < freq + width)
+    return float(spectrum[band].max())
+
+
+def _imu(trace: Trace, column: str, axis: int) -> tuple[np.ndarray, float]:
+    keep = (trace.imu_time > WINDOW[0]) & (trace.imu_time < WINDOW[1])
+    data = getattr(trace, column)[keep]
+    return (data[:, axis] if data.ndim == 2 else data), trace.imu_rate
+
+
+def _rotation_hz(trace: Trace) -> float:
+    keep = (trace.time > WINDOW[0]) & (trace.time < WINDOW[1])
+    return float(trace.wheel_speed[keep, 0].mean() / (2 * np.pi))
+
+
+@pytest.mark.parametrize(
+    ("kind", "column", "axis"), [("imbalance", "imu_acc", 0), ("flat_spot", "imu_acc", 2)]
+)
+def test_once_per_revolution_faults_peak_at_wheel_rotation_frequency(
+    kind: str, column: str, axis: int
+) -> None:
+    base = _run("", 0.0)
+    f_r = _rotation_hz(base)
+    assert f_r == pytest.approx(SPEED / (2 * np.pi * 0.08), rel=0.06)
+    amps = [_amplitude(*_imu(_run(kind, s) if s else base, column, axis), f_r) for s in (0.0, 0.5, 1.0)]
+    assert amps[0] < amps[1] < amps[2]
+    assert amps[2] > 5 * amps[0]
+
+
+def test_bearing_fault_is_an_impulse_train_at_the_defect_frequency() -> None:
+    base = _run("", 0.0)
+    f_d = bpfo_order() * _rotation_hz(base)
+    amps = [_amplitude(*_imu(_run("bearing", s) if s else base, "imu_acc", 2), f_d) for s in (0.0, 0.5, 1.0)]
+    assert amps[0] < amps[1] < amps[2]
+    assert amps[2] > 5 * amps[0]
+    # impulses: the spikes are spaced by one defect period
+    z, rate = _imu(_run("bearing", 1.0), "imu_acc", 2)
+    spikes = np.flatnonzero(z - np.median(z) > 6 * np.std(_imu(base, "imu_acc", 2)[0]))
+    starts = spikes[np.concatenate([[True], np.diff(spikes) > 2])]
+    period = np.median(np.diff(starts)) / rate
+    assert period == pytest.approx(1 / f_d, rel=0.1)
+
+
+def test_loose_wheel_wobbles_the_yaw_at_the_rotation_frequency() -> None:
+    base = _run("", 0.0)
+    f_r = _rotation_hz(base)
+    amps = [
+        _amplitude(*_imu(_run("loose_wheel", s) if s else base, "imu_gyro", 2), f_r) for s in (0.0, 0.5, 1.0)
+    ]
+    assert amps[0] < amps[1] < amps[2]
+    assert amps[2] > 3 * amps[0]
+
+
+def test_motor_degradation_ripples_the_torque_and_droops_the_wheel() -> None:
+    base = _run("", 0.0)
+    f_motor = base.robot.gear_ratio * _rotation_hz(base)
+    keep = (base.time > WINDOW[0]) & (base.time < WINDOW[1])
+    rate = 1 / base.physics_dt
+    ripple = [
+        _amplitude((_run("motor_degradation", s) if s else base).wheel_torque[keep, 0], rate, f_motor, 1.0)
+        for s in (0.0, 0.5, 1.0)
+    ]
+    assert ripple[0] < ripple[1] < ripple[2]
+    worn = _run("motor_degradation", 1.0)
+    # the worn wheel's motor works against the three healthy ones: it brakes on average
+    assert worn.wheel_torque[keep, 0].mean() < base.wheel_torque[keep, 0].mean() - 0.2
+
+
+@pytest.mark.parametrize("kind", ["imbalance", "bearing", "loose_wheel", "motor_degradation", "flat_spot"])
+def test_zero_severity_equals_no_fault_bit_for_bit(kind: str) -> None:
+    base = simulate(straight(duration=2.0))
+    zero = simulate(straight(duration=2.0, faults=(Fault(kind, 1, 0.0, 0.5),)))
+    a, b = _flatten(base), _flatten(zero)
+    for key, value in a.items():
+        if key.startswith("faults.") or key == "scenario_name":
+            continue
+        np.testing.assert_array_equal(value, b[key], err_msg=key)
+    assert zero.faults[0].severity == 0.0 and np.all(zero.label == 0)
+
+
+def test_fault_labels_mark_the_active_interval() -> None:
+    trace = simulate(straight(duration=4.0, faults=(Fault("imbalance", 2, 0.8, 1.5, 1.0),)))
+    on = (trace.imu_time >= 1.5) & (trace.imu_time < 2.5)
+    assert np.all(trace.label[on] == 2) and np.all(trace.label[~on] == 0)
+    assert np.all(trace.label_wheel[on] == 2) and np.all(trace.label_wheel[~on] == -1)
+    assert trace.faults[0].defect_order == 1.0 and trace.faults[0].resonance_hz > 0
+
+
+def test_same_scenario_gives_the_same_trace_bit_for_bit() -> None:
+    from sim import random_scenario
+
+    scenario = random_scenario(8, "fault", duration=6.0, fault_kind="loose_wheel", severity=(0.9, 1.0))
+    scenario = scenario.replace(faults=(Fault("loose_wheel", 0, 0.9, 0.5),))
+    a, b = _flatten(simulate(scenario)), _flatten(simulate(scenario))
+    assert a.keys() == b.keys()
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)

@@ -45,12 +45,6 @@ DAGMM_RIDGE = 1e-3
 """DAGMM: ridge added to every component covariance."""
 
 
-def _chunks(
-    audio: torch.Tensor, imu: torch.Tensor, size: int = 256
-) -> list[tuple[torch.Tensor, torch.Tensor]]:
-    return [(audio[i : i + size], imu[i : i + size]) for i in range(0, audio.shape[0], size)]
-
-
 def _center(z: torch.Tensor) -> torch.Tensor:
     c = z.mean(dim=0)
     small = c.abs() < CENTER_MIN
@@ -75,7 +69,7 @@ class DeepSVDD(DeepDetector):
     def before_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
         self.module.eval()
         with torch.no_grad():
-            z = torch.cat([self._embed(self.module, a, i)[0] for a, i in _chunks(audio, imu)])
+            z = torch.cat([self._embed(self.module, a, i)[0] for a, i in self.chunks(audio, imu)])
         self.extra["center"] = _center(z)
 
     def loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -88,7 +82,7 @@ class DeepSVDD(DeepDetector):
         return ((z - self.extra["center"]) ** 2).sum(dim=1), rec
 
     def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
-        parts = [self._parts(a, i) for a, i in _chunks(audio, imu)]
+        parts = [self._parts(a, i) for a, i in self.chunks(audio, imu)]
         dist2 = torch.cat([p[0] for p in parts])
         rec = torch.cat([p[1] for p in parts])
         weight = self.config.w * float(dist2.mean()) / max(float(rec.mean()), 1e-12)
@@ -96,7 +90,7 @@ class DeepSVDD(DeepDetector):
 
     def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
         dist2, rec = self._parts(audio, imu)
-        return dist2.double() + self.extra["rec_weight"][0] * rec.double()
+        return dist2.double() + float(self.extra["rec_weight"][0]) * rec.double()
 
 
 class DeepAutoencoder(DeepDetector):
@@ -111,7 +105,7 @@ class DeepAutoencoder(DeepDetector):
         net: Any = module
         a_tok = net.audio_encoder(audio) if net.audio_encoder is not None else None
         i_tok = net.imu_encoder(imu) if net.imu_encoder is not None else None
-        err = torch.zeros(audio.shape[0], dtype=audio.dtype)
+        err = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
         if a_tok is not None:
             err = err + F.huber_loss(net.audio_decoder(a_tok), audio, reduction="none").mean(dim=(1, 2))
         if i_tok is not None:
@@ -142,8 +136,8 @@ class _VAEModule(nn.Module):
         a_tok = net.audio_encoder(audio) if net.audio_encoder is not None else None
         i_tok = net.imu_encoder(imu) if net.imu_encoder is not None else None
         z = net.fusion(a_tok, i_tok).z
-        rec = torch.zeros(audio.shape[0], dtype=audio.dtype)
-        kl = torch.zeros(audio.shape[0], dtype=audio.dtype)
+        rec = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
+        kl = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
         branches = (
             (a_tok, self.logvar_a, net.audio_decoder, audio, (1, 2)),
             (i_tok, self.logvar_i, net.imu_decoder, imu, (1,)),
@@ -170,7 +164,7 @@ class VAESVDD(DeepDetector):
     def before_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
         self.module.eval()
         with torch.no_grad():
-            z = torch.cat([self.module(a, i)[0] for a, i in _chunks(audio, imu)])
+            z = torch.cat([self.module(a, i)[0] for a, i in self.chunks(audio, imu)])
         self.extra["center"] = _center(z)
 
     def loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -183,7 +177,7 @@ class VAESVDD(DeepDetector):
         return ((z - self.extra["center"]) ** 2).sum(dim=1), rec
 
     def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
-        parts = [self._parts(a, i) for a, i in _chunks(audio, imu)]
+        parts = [self._parts(a, i) for a, i in self.chunks(audio, imu)]
         dist2 = torch.cat([p[0] for p in parts])
         rec = torch.cat([p[1] for p in parts])
         weight = self.config.w * float(dist2.mean()) / max(float(rec.mean()), 1e-12)
@@ -191,7 +185,7 @@ class VAESVDD(DeepDetector):
 
     def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
         dist2, rec = self._parts(audio, imu)
-        return dist2.double() + self.extra["rec_weight"][0] * rec.double()
+        return dist2.double() + float(self.extra["rec_weight"][0]) * rec.double()
 
 
 class _DAGMMModule(nn.Module):
@@ -238,7 +232,11 @@ def gmm_parameters(
     mu = gamma.T @ features / mass[:, None]
     centred = features[None, :, :] - mu[:, None, :]
     cov = torch.einsum("nk,kni,knj->kij", gamma, centred, centred) / mass[:, None, None]
-    return phi, mu, cov + DAGMM_RIDGE * torch.eye(features.shape[1], dtype=features.dtype)
+    return (
+        phi,
+        mu,
+        cov + DAGMM_RIDGE * torch.eye(features.shape[1], dtype=features.dtype, device=features.device),
+    )
 
 
 def gmm_energy(
@@ -271,7 +269,7 @@ class DAGMM(DeepDetector):
         return rec.mean() + DAGMM_LAMBDA_ENERGY * energy.mean() + DAGMM_LAMBDA_COV * penalty
 
     def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
-        parts = [self.module(a, i) for a, i in _chunks(audio, imu)]
+        parts = [self.module(a, i) for a, i in self.chunks(audio, imu)]
         features = torch.cat([p[0] for p in parts]).double()
         gamma = torch.cat([p[1] for p in parts]).double()
         phi, mu, cov = gmm_parameters(features, gamma)
@@ -303,7 +301,7 @@ def register_methods() -> None:
 
 
 def _factory(cls: type[DeepDetector]) -> Any:
-    def make(seed: int, scale: str) -> DeepDetector:
-        return cls(scale_config(scale, seed, use_mahalanobis=False))
+    def make(seed: int, scale: str, device: str) -> DeepDetector:
+        return cls(scale_config(scale, seed, use_mahalanobis=False, device=device))
 
     return make

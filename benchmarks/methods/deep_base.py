@@ -6,7 +6,8 @@ with the same budget as M-SVDD at each scale (`MSVDDConfig.tiny()`, `.quick()`, 
 z-scored with `msvdd.preprocess.Normalizer` statistics of the training windows and smoothed per window as
 M-SVDD does. All random draws (initialisation, dropout, sampling, shuffling) happen inside a forked torch RNG
 seeded from the method's seed, so the same seed gives the same model bit for bit. Model files are `.npz`
-(weights as float arrays, config as JSON): no pickle. They run on the CPU (config device "cpu").
+(weights as float arrays, config as JSON): no pickle. They train and score on `config.device` (cpu, cuda or
+auto), saved weights are on the CPU.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
 from msvdd.network import NetOutput
 from msvdd.preprocess import Normalizer
-from msvdd.training import prepare_tensors, split_train_val, train_network
+from msvdd.training import prepare_tensors, resolve_device, split_train_val, train_network
 
 SCORE_CHUNK = 256
 """Windows per forward pass when scoring."""
@@ -57,6 +58,7 @@ class DeepDetector(WindowDetector):
     def __init__(self, config: MSVDDConfig) -> None:
         super().__init__()
         self.config = config
+        self.device = resolve_device(config.device)
         self.module: nn.Module = nn.Module()
         self.normalizer: Normalizer | None = None
         self.extra: dict[str, torch.Tensor] = {}
@@ -80,6 +82,13 @@ class DeepDetector(WindowDetector):
     def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
         """Hook run on all training tensors after training (statistics the score needs); default nothing."""
         return None
+
+    def chunks(self, audio: torch.Tensor, imu: torch.Tensor) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """Consecutive slices of at most `SCORE_CHUNK` windows of (audio, imu), moved to the device."""
+        return [
+            (audio[i : i + SCORE_CHUNK].to(self.device), imu[i : i + SCORE_CHUNK].to(self.device))
+            for i in range(0, audio.shape[0], SCORE_CHUNK)
+        ]
 
     @property
     def min_windows(self) -> int:
@@ -110,7 +119,7 @@ class DeepDetector(WindowDetector):
         val_tensors = self._tensors(val_part) if len(val_part) else None
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(cfg.seed)
-            self.module = self.build()
+            self.module = self.build().to(self.device)
             self.before_training(audio, imu)
             train_network(self.module, self.loss, (audio, imu), val_tensors, cfg)
             self.module.eval()
@@ -120,12 +129,8 @@ class DeepDetector(WindowDetector):
     def _score(self, batch: Windows) -> np.ndarray:
         audio, imu = self._tensors(batch)
         self.module.eval()
-        parts = []
         with torch.no_grad():
-            for start in range(0, audio.shape[0], SCORE_CHUNK):
-                parts.append(
-                    self.batch_scores(audio[start : start + SCORE_CHUNK], imu[start : start + SCORE_CHUNK])
-                )
+            parts = [self.batch_scores(a, i).cpu() for a, i in self.chunks(audio, imu)]
         return torch.cat(parts).double().numpy()
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -140,12 +145,14 @@ class DeepDetector(WindowDetector):
     def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
         detector = cls(MSVDDConfig.from_dict(header["config"]))
         with torch.random.fork_rng(devices=[]):
-            detector.module = detector.build()
+            detector.module = detector.build().to(detector.device)
         state = {k[4:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("net/")}
-        detector.module.load_state_dict(state)
+        detector.module.load_state_dict({k: v.to(detector.device) for k, v in state.items()})
         detector.module.eval()
         detector.normalizer = Normalizer.from_state(
             {k[5:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("norm/")}
         )
-        detector.extra = {k: torch.from_numpy(arrays[f"extra/{k}"].copy()) for k in cls.extra_keys}
+        detector.extra = {
+            k: torch.from_numpy(arrays[f"extra/{k}"].copy()).to(detector.device) for k in cls.extra_keys
+        }
         return detector

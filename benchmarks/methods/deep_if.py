@@ -27,7 +27,7 @@ from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
 from msvdd.network import FusionNet
 from msvdd.preprocess import Normalizer
-from msvdd.training import prepare_tensors
+from msvdd.training import prepare_tensors, resolve_device
 
 
 @dataclass(frozen=True)
@@ -64,13 +64,14 @@ class DeepIsolationForest(WindowDetector):
         self.train_embeddings: list[np.ndarray] = []
         self.train_scores: list[np.ndarray] = []
         self.normalizer: Normalizer | None = None
+        self.device = resolve_device(net_config.device)
 
     def _build_nets(self) -> list[FusionNet]:
         nets = []
         with torch.random.fork_rng(devices=[]):
             for r in range(self.config.n_representations):
                 torch.manual_seed(self.config.seed * 1_000 + r)
-                nets.append(FusionNet(self.net_config).eval())
+                nets.append(FusionNet(self.net_config).to(self.device).eval())
         return nets
 
     def _embed(self, batch: Windows) -> list[np.ndarray]:
@@ -82,7 +83,9 @@ class DeepIsolationForest(WindowDetector):
         with torch.no_grad():
             for net in self.nets:
                 parts = [
-                    net(audio[i : i + SCORE_CHUNK], imu[i : i + SCORE_CHUNK]).z
+                    net(
+                        audio[i : i + SCORE_CHUNK].to(self.device), imu[i : i + SCORE_CHUNK].to(self.device)
+                    ).z.cpu()
                     for i in range(0, audio.shape[0], SCORE_CHUNK)
                 ]
                 out.append(torch.cat(parts).double().numpy())
@@ -121,7 +124,7 @@ class DeepIsolationForest(WindowDetector):
         }
         arrays = {f"norm/{k}": v.numpy() for k, v in self.normalizer.state().items()}
         for r, net in enumerate(self.nets):
-            arrays |= {f"net{r}/{k}": v.numpy() for k, v in net.state_dict().items()}
+            arrays |= {f"net{r}/{k}": v.cpu().numpy() for k, v in net.state_dict().items()}
             arrays[f"emb{r}"] = self.train_embeddings[r]
             arrays[f"train_scores{r}"] = self.train_scores[r]
         return header, arrays
@@ -156,8 +159,10 @@ def register_methods() -> None:
     """Register `deep-if`."""
     from benchmarks.methods.registry import register
 
-    def make(seed: int, scale: str) -> DeepIsolationForest:
-        net = scale_config(scale, seed, use_reconstruction=False, use_mahalanobis=False, progress=False)
+    def make(seed: int, scale: str, device: str) -> DeepIsolationForest:
+        net = scale_config(
+            scale, seed, use_reconstruction=False, use_mahalanobis=False, progress=False, device=device
+        )
         return DeepIsolationForest(DeepIFConfig.for_scale(seed, scale), net)
 
     register(

@@ -38,8 +38,8 @@ ABLATIONS: dict[str, tuple[dict[str, Any], str]] = {
 """Registry name -> (MSVDDConfig overrides, description); "msvdd" is s = 32."""
 
 
-def msvdd_config(name: str, seed: int, scale: str) -> MSVDDConfig:
-    """The MSVDDConfig of registry entry `name` at `scale`."""
+def msvdd_config(name: str, seed: int, scale: str, device: str = "cpu") -> MSVDDConfig:
+    """The MSVDDConfig of registry entry `name` at `scale` on `device`."""
     overrides, _ = ABLATIONS[name]
     base = scale_config(scale, seed)
     s = int(overrides.get("s", base.s))
@@ -48,7 +48,7 @@ def msvdd_config(name: str, seed: int, scale: str) -> MSVDDConfig:
         extra["batch_size"] = max(base.batch_size, s + 8 if scale == "tiny" else 2 * s)
     if scale == "tiny":
         extra["val_fraction"] = 0.0
-    return scale_config(scale, seed, **overrides, **extra)
+    return scale_config(scale, seed, **overrides, **extra, device=device)
 
 
 class BenchMSVDD(MSVDD):
@@ -62,8 +62,8 @@ class BenchMSVDD(MSVDD):
 
 
 def _factory(name: str) -> Any:
-    def make(seed: int, scale: str) -> BenchMSVDD:
-        return BenchMSVDD(msvdd_config(name, seed, scale))
+    def make(seed: int, scale: str, device: str) -> BenchMSVDD:
+        return BenchMSVDD(msvdd_config(name, seed, scale, device))
 
     return make
 

@@ -65,14 +65,14 @@ def register_methods() -> None:
 
     register(
         "audio-rms",
-        lambda seed, scale: AudioRMS(),
+        lambda seed, scale, device: AudioRMS(),
         family="naive",
         modality="audio",
         description="window audio RMS (sanity baseline)",
     )
     register(
         "imu-kurtosis",
-        lambda seed, scale: IMUKurtosis(),
+        lambda seed, scale, device: IMUKurtosis(),
         family="naive",
         modality="imu",
         description="excess kurtosis of the IMU window (sanity baseline)",

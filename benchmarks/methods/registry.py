@@ -27,8 +27,11 @@ METHOD_FORMAT_VERSION = 1
 METHOD_FILE = "method.json"
 MODEL_FILE = "model.bin"
 
-Factory = Callable[[int, str], Detector]
-"""factory(seed, scale) -> an unfitted detector."""
+Factory = Callable[[int, str, str], Detector]
+"""factory(seed, scale, device) -> an unfitted detector; CPU-only methods ignore the device."""
+
+DEVICES: tuple[str, ...] = ("cpu", "cuda", "auto")
+"""Torch devices a method may be built for ("auto" = CUDA when available)."""
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,7 @@ class MethodSpec:
     name: str
     """Registry name, e.g. `msvdd`, `iforest-early`."""
     factory: Factory
-    """factory(seed, scale) -> an unfitted detector."""
+    """factory(seed, scale, device) -> an unfitted detector."""
     family: str
     """One of `FAMILIES`."""
     modality: str
@@ -55,7 +58,7 @@ def register(name: str, factory: Factory, *, family: str, modality: str, descrip
 
     Args:
         name: unique registry name.
-        factory: factory(seed, scale) -> unfitted detector; its class's `load` reads saved models.
+        factory: factory(seed, scale, device) -> unfitted detector; its class's `load` reads saved models.
         family: one of `FAMILIES`.
         modality: one of `MODALITIES`.
         description: one line.
@@ -83,13 +86,18 @@ def spec(name: str) -> MethodSpec:
     return _REGISTRY[name]
 
 
-def make(name: str, *, seed: int, scale: str) -> Detector:
-    """An unfitted detector of method `name` for `seed` and training `scale` (tiny, quick or paper)."""
+def make(name: str, *, seed: int, scale: str, device: str = "cpu") -> Detector:
+    """An unfitted detector of method `name` for `seed` and training `scale` (tiny, quick or paper).
+
+    `device` (cpu, cuda, auto) is where the torch methods train and score; the others ignore it.
+    """
     method = spec(name)
     check_scale(scale)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be a non-negative int, got {seed!r}")
-    return method.factory(seed, scale)
+    if device not in DEVICES:
+        raise ValueError(f"device {device!r} is unknown; allowed: {', '.join(DEVICES)}")
+    return method.factory(seed, scale, device)
 
 
 def _versions() -> dict[str, str]:

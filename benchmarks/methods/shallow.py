@@ -228,7 +228,7 @@ _TITLES = {
 
 
 def _factory(model: str, fusion: str) -> Any:
-    def make(seed: int, scale: str) -> ShallowDetector:
+    def make(seed: int, scale: str, device: str) -> ShallowDetector:
         return ShallowDetector(ShallowConfig.for_scale(model, fusion, seed, scale))
 
     return make

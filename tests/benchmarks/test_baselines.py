@@ -138,11 +138,13 @@ def test_refit_that_does_not_reproduce_training_scores_is_refused(tmp_path: Path
 def test_registry_errors(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"allowed: .*iforest-early"):
         methods.make("no-such-method", seed=0, scale="tiny")
+    with pytest.raises(ValueError, match="device 'tpu'"):
+        methods.make("audio-rms", seed=0, scale="tiny", device="tpu")
     with pytest.raises(ValueError, match="scale 'huge'"):
         methods.make("audio-rms", seed=0, scale="huge")
     with pytest.raises(ValueError, match="already registered"):
         methods.register(
-            "audio-rms", lambda s, c: naive.AudioRMS(), family="naive", modality="audio", description=""
+            "audio-rms", lambda s, c, d: naive.AudioRMS(), family="naive", modality="audio", description=""
         )
     assert set(methods.names("naive")) == {"audio-rms", "imu-kurtosis"}
     with pytest.raises(FileNotFoundError, match=r"method\.json"):

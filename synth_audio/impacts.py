@@ -56,13 +56,22 @@ MATERIALS: dict[str, Material] = {
 ROBOT_BODY = Material((230, 640, 1450, 2900), (0.1, 0.08, 0.05, 0.04), (0.5, 1.0, 0.7, 0.35), 0.002, 0.0, 0.5)
 """The robot's own chassis, excited by every hit (collisions and benign bumps alike)."""
 
-IMPACT_SCALE = 1.2
-"""Modal amplitude per sqrt(N s) of impulse, relative to the nominal per-wheel rolling level.
+IMPACT_SCALE = 1.9
+"""Modal amplitude per unit of `impulse_law`, relative to the nominal per-wheel rolling level."""
+IMPULSE_KNEE = 2.0
+"""Impulse (N s) above which loudness grows logarithmically (see `impulse_law`)."""
 
-Amplitude grows as sqrt(impulse): MuJoCo's event impulse includes the quasi-static load carried during
-the soft contact, so a linear law would make every long contact deafening."""
-IMPULSE_EXPONENT = 0.5
-"""Amplitude ~ impulse ** IMPULSE_EXPONENT (monotonic)."""
+
+def impulse_law(impulse: float) -> float:
+    """Excitation amplitude for an event impulse: log(1 + J / knee), monotonic and compressive.
+
+    MuJoCo's event impulse includes the quasi-static load carried during a soft contact (tens of N s for
+    a wheel rolling over a cable), so loudness cannot grow linearly with it; a logarithmic law keeps a
+    1 N s tap and a 100 N s ram about 20 dB apart.
+    """
+    return float(np.log1p(max(float(impulse), 0.0) / IMPULSE_KNEE))
+
+
 SCRAPE_SCALE = 0.35
 """Scrape amplitude per sqrt(mean contact force in N), relative to the same level."""
 MIN_SCRAPE_S = 0.05
@@ -108,7 +117,7 @@ def struck_response(
     out[:click_len] += np.float32(material.click) * click
     rise = max(min(int(0.5 * tau * sample_rate), int(0.001 * sample_rate)), 1)
     out[:rise] *= np.sin(0.5 * np.pi * (np.arange(rise) + 1) / rise).astype(np.float32) ** 2
-    out *= np.float32(scale * max(float(impulse), 0.0) ** IMPULSE_EXPONENT)
+    out *= np.float32(scale * impulse_law(impulse))
     return out
 
 

@@ -23,8 +23,8 @@ KINDS: dict[str, Material] = {
 }  # fmt: skip
 """Every kind in `sim.vocab.TRANSIENT_KINDS`: the tyre/floor-feature contact character."""
 
-TRANSIENT_SCALE = 1.2
-"""Amplitude per sqrt(N s) of vertical impulse (the same law and scale as collision impacts)."""
+TRANSIENT_SCALE = 4.4
+"""Amplitude per unit of `impacts.impulse_law` of the vertical impulse (wheel drops ring the chassis)."""
 
 
 def transient(

@@ -10,18 +10,24 @@ dimension s. Two budget rules keep every variant trainable:
 - At the tiny scale no validation split is held out (val_fraction = 0): the validation MCD needs more than s
   validation windows, more than a seconds-long test has.
 
+A validation set too small for the validation MCD (fewer than about s + 3 windows) cannot select an epoch:
+M-SVDD then trains without one (keeping the last epoch) and says so in a warning, instead of refusing to fit.
+
 The threshold follows the rule every method in the registry follows: the 95th percentile of the scores of all
 windows passed to `fit` (M-SVDD alone takes it over its training split without the held-out validation part).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from typing import Any, Self
 
 from benchmarks.methods.base import training_threshold
 from benchmarks.methods.deep_base import scale_config
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
+from msvdd.mcd import MCDError, support_size
 from msvdd.model import MSVDD
 
 ABLATIONS: dict[str, tuple[dict[str, Any], str]] = {
@@ -55,10 +61,29 @@ class BenchMSVDD(MSVDD):
     """`MSVDD` whose threshold is the 95th percentile of the scores of every window passed to `fit`."""
 
     def fit(self, train: Windows, val: Windows | None = None) -> Self:
-        """Fit M-SVDD, then set `threshold_` from the scores of all of `train`."""
+        """Fit M-SVDD (without validation if `val` is too small for its MCD), then set `threshold_`."""
+        cfg = self.config
+        n_val = len(val) if val is not None else round(len(train) * cfg.val_fraction)
+        if cfg.use_mahalanobis and n_val > 0 and not _mcd_possible(min(n_val, cfg.batch_size), cfg):
+            source = "the val set" if val is not None else f"a {cfg.val_fraction:.0%} validation split"
+            warnings.warn(
+                f"{source} has {n_val} windows, too few for the validation MCD in s={cfg.s} dimensions; "
+                "M-SVDD trains without validation (last epoch kept)",
+                stacklevel=2,
+            )
+            self.config = dataclasses.replace(cfg, val_fraction=0.0)
+            val = None
         super().fit(train, val)
         self.threshold_ = training_threshold(self.score(train))
         return self
+
+
+def _mcd_possible(n: int, config: MSVDDConfig) -> bool:
+    try:
+        support_size(n, config.s, config.mcd_support_fraction)
+    except MCDError:
+        return False
+    return True
 
 
 def _factory(name: str) -> Any:

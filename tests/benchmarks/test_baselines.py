@@ -209,3 +209,13 @@ def test_registry_lists_every_family_of_the_paper() -> None:
     assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if"}
     assert len(by_family["shallow"]) == 6
     assert methods.make("msvdd-s64", seed=0, scale="paper").config.batch_size == 128  # type: ignore[attr-defined]
+
+
+def test_msvdd_trains_without_a_validation_set_too_small_for_its_mcd() -> None:
+    torch.set_num_threads(1)
+    windows, _ = toy_windows(48, 0, seed=10)
+    det = methods.make("msvdd", seed=0, scale="tiny")
+    with pytest.warns(UserWarning, match="too few for the validation MCD"):
+        det.fit(windows.subset(slice(0, 40)), windows.subset(slice(40, 45)))
+    assert np.isfinite(det.threshold_)
+    assert np.ptp(det.score(windows.subset(slice(45, 48)))) > 0

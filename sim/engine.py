@@ -21,7 +21,7 @@ from sim.world import World
 CONTROL_STEPS = 16
 """Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
 
-SKID_TRACK_FACTOR = 2.4
+SKID_TRACK_FACTOR = 2.0
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
 
 _CONTROL_SPEC = int(

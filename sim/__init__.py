@@ -9,10 +9,10 @@ import os
 # dm_control picks an OpenGL backend on import; the simulator never renders, so default to none.
 os.environ.setdefault("MUJOCO_GL", "disable")
 
-from sim.envs import DiffDriveEnv, make_dm_env, make_env, register_envs  # noqa: E402
-from sim.random_scenarios import random_scenario, scenario_presets  # noqa: E402
-from sim.rollout import simulate  # noqa: E402
-from sim.scenario import (  # noqa: E402
+from sim.envs import DiffDriveEnv, make_dm_env, make_env, register_envs
+from sim.random_scenarios import random_scenario, scenario_presets
+from sim.rollout import simulate
+from sim.scenario import (
     Fault,
     Obstacle,
     Route,
@@ -23,7 +23,7 @@ from sim.scenario import (  # noqa: E402
     Unit,
     Waypoint,
 )
-from sim.trace import (  # noqa: E402
+from sim.trace import (
     ContactEvents,
     FaultRecord,
     ObstacleRecord,

@@ -383,8 +383,6 @@ def _insert_rams(
     duration: float,
 ) -> list[Waypoint]:
     """Insert approach, ram and retreat legs towards obstacle 0 at chosen speeds and angles."""
-    target = obstacles[0]
-    others = obstacles[1:]
     out = list(waypoints)
     pts = np.array([(start[0], start[1])] + [(w.x, w.y) for w in out])
     leg_time = 1.8 * np.linalg.norm(np.diff(pts, axis=0), axis=1) / np.array([w.speed for w in out])

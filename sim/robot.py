@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import importlib
 import importlib.resources
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from dm_control import mjcf

@@ -147,12 +147,12 @@ def build_world(scenario: Scenario) -> World:
     base = robot.model.find("body", "base")
     wheels = robot.info.wheel_names
     sensor = arena.sensor
-    for w in wheels:
-        sensor.add("jointpos", name=f"angle_{w}", joint=robot.model.find("joint", w))
-    for w in wheels:
-        sensor.add("jointvel", name=f"speed_{w}", joint=robot.model.find("joint", w))
-    for w in wheels:
-        sensor.add("actuatorfrc", name=f"torque_{w}", actuator=robot.model.find("actuator", w))
+    for name in wheels:
+        sensor.add("jointpos", name=f"angle_{name}", joint=robot.model.find("joint", name))
+    for name in wheels:
+        sensor.add("jointvel", name=f"speed_{name}", joint=robot.model.find("joint", name))
+    for name in wheels:
+        sensor.add("actuatorfrc", name=f"torque_{name}", actuator=robot.model.find("actuator", name))
     imu = robot.model.find("site", "imu")
     sensor.add("framepos", name="base_pos", objtype="xbody", objname=base)
     sensor.add("framequat", name="base_quat", objtype="xbody", objname=base)
@@ -169,9 +169,9 @@ def build_world(scenario: Scenario) -> World:
             "contact", name=f"hit_{i}", subtree1=base, body2=body, data="found force pos",
             reduce="netforce", num=1,
         )  # fmt: skip
-    for w in wheels:
+    for name in wheels:
         sensor.add(
-            "contact", name=f"bump_{w}", geom1=robot.model.find("geom", w), body2=transients,
+            "contact", name=f"bump_{name}", geom1=robot.model.find("geom", name), body2=transients,
             data="found force pos", reduce="netforce", num=1,
         )  # fmt: skip
     xml = arena.to_xml_string()
@@ -200,7 +200,7 @@ def build_world(scenario: Scenario) -> World:
             position=np.array([ob.x, ob.y, ob.size[2]]),
             size=np.asarray(ob.size, dtype=np.float64),
             yaw=float(ob.yaw),
-        )  # fmt: skip
+        )
         for ob in obstacles
     )
     return World(
@@ -358,10 +358,8 @@ def _add_transient(
     elif kind == "cable":
         half = length / 2
         c, s = np.cos(yaw), np.sin(yaw)
-        parent.add(
-            "geom", name=name, type="capsule", size=[h / 2],
-            fromto=[x - c * half, y - s * half, h / 2, x + c * half, y + s * half, h / 2], rgba=[0.1, 0.1, 0.1, 1],
-        )  # fmt: skip
+        ends = [x - c * half, y - s * half, h / 2, x + c * half, y + s * half, h / 2]
+        parent.add("geom", name=name, type="capsule", size=[h / 2], fromto=ends, rgba=[0.1, 0.1, 0.1, 1])
     elif kind == "kerb_ramp":
         # A plate tilted about its long axis: rises from the floor to `h` over 0.3 m, then drops.
         pitch = float(np.arctan2(h, 0.3))

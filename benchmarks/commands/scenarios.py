@@ -26,7 +26,8 @@ def _run(args: argparse.Namespace) -> int:
         extra = ""
         if sc.faults:
             f = sc.faults[0]
-            extra = f" fault {f.kind} wheel {sc.wheel_names[f.wheel]} severity {f.severity:.2f} onset {f.onset:.1f} s"
+            wheel = sc.wheel_names[f.wheel]
+            extra = f" fault {f.kind} wheel {wheel} severity {f.severity:.2f} onset {f.onset:.1f} s"
         print(
             f"  {name:<26} {sc.category:<9} {sc.environment:<7} {sc.surface:<8} {sc.robot.model} "
             f"{sc.duration:.0f} s, {len(sc.obstacles)} obstacles, {len(sc.transients)} transients{extra}"

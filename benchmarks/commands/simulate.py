@@ -53,7 +53,8 @@ def _run(args: argparse.Namespace) -> int:
         f"robot {trace.robot.model} unit {trace.robot.unit_id})"
     )
     print(
-        f"duration   {trace.duration:.2f} s simulated in {wall:.2f} s ({trace.duration / max(wall, 1e-9):.0f}x real time)"
+        f"duration   {trace.duration:.2f} s simulated in {wall:.2f} s "
+        f"({trace.duration / max(wall, 1e-9):.0f}x real time)"
     )
     print(f"distance   {distance:.1f} m, top speed {speed.max():.2f} m/s")
     print(
@@ -69,7 +70,8 @@ def _run(args: argparse.Namespace) -> int:
     ):
         print(f"           t={t:7.2f} s  {k:<10} impulse {j:6.2f} N s  approach {v:4.2f} m/s")
     print(
-        f"transients {len(trace.transients.time)} wheel hits ({', '.join(sorted(set(trace.transients.kind))) or 'none'})"
+        f"transients {len(trace.transients.time)} wheel hits "
+        f"({', '.join(sorted(set(trace.transients.kind))) or 'none'})"
     )
     if trace.faults:
         for f in trace.faults:

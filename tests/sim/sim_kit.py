@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
 
 

@@ -17,7 +17,7 @@ from sim.world import build_world
 def _constant_drive(scenario: Scenario, v: float, w: float, seconds: float) -> tuple[Engine, np.ndarray]:
     world = build_world(scenario)
     engine = Engine(world, scenario)
-    n = int(round(seconds / engine.dt / CONTROL_STEPS)) * CONTROL_STEPS
+    n = round(seconds / engine.dt / CONTROL_STEPS) * CONTROL_STEPS
     out = np.empty((n, world.model.nsensordata))
     for start in range(0, n, CONTROL_STEPS):
         engine.step(engine.wheel_commands(v, w), out[start : start + CONTROL_STEPS])

@@ -7,11 +7,11 @@ import math
 from pathlib import Path
 
 import pytest
+from sim_kit import straight
 
 from sim import ScenarioError, random_scenario, scenario_presets, vocab
 from sim.robot import asset_path
 from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
-from sim_kit import straight
 
 
 def test_dict_round_trip_is_exact_and_json_able() -> None:
@@ -61,7 +61,7 @@ def test_obstacle_outside_arena_is_refused() -> None:
 
 
 def test_unknown_surface_and_wrong_environment_are_refused() -> None:
-    with pytest.raises(ScenarioError, match="surface = 'lava'.*tile"):
+    with pytest.raises(ScenarioError, match=r"surface = 'lava'.*tile"):
         straight().replace(surface="lava")
     with pytest.raises(ScenarioError, match=r"surface \(for indoor\) = 'grass'.*tile, carpet, concrete"):
         straight().replace(surface="grass")
@@ -70,17 +70,16 @@ def test_unknown_surface_and_wrong_environment_are_refused() -> None:
 def test_unknown_toml_key_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text('name = "x"\nseed = 1\nduration = 5.0\nspeeed = 2\n')
-    with pytest.raises(ScenarioError, match="scenario key = 'speeed'.*allowed: name, seed, duration"):
+    with pytest.raises(ScenarioError, match=r"scenario key = 'speeed'.*allowed: name, seed, duration"):
         Scenario.from_toml(path)
-    path.write_text(
-        'name = "x"\nseed = 1\nduration = 5.0\n[[faults]]\nkind = "bearing"\nwheel = 0\nseverity = 0.5\nonset = 1.0\nphase = 2\n'
-    )
+    fault = '[[faults]]\nkind = "bearing"\nwheel = 0\nseverity = 0.5\nonset = 1.0\nphase = 2\n'
+    path.write_text('name = "x"\nseed = 1\nduration = 5.0\n' + fault)
     with pytest.raises(ScenarioError, match=r"faults\[0\] key = 'phase'"):
         Scenario.from_toml(path)
 
 
 def test_missing_toml_file_names_path(tmp_path: Path) -> None:
-    with pytest.raises(FileNotFoundError, match="nope.toml"):
+    with pytest.raises(FileNotFoundError, match=r"nope\.toml"):
         Scenario.from_toml(tmp_path / "nope.toml")
 
 

@@ -1,0 +1,90 @@
+"""Gymnasium and dm_env environments over the simulator."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from dm_env import StepType
+from gymnasium.utils.env_checker import check_env
+from sim_kit import straight
+
+import sim
+from sim import Fault, Obstacle, make_dm_env, make_env
+
+
+def test_registered_env_passes_check_env() -> None:
+    env = gym.make("robot_anomaly/DiffDrive-v0")
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_reset_is_deterministic_per_seed_and_drives() -> None:
+    env = make_env(straight(duration=2.0))
+    obs_a, _ = env.reset(seed=5)
+    obs_b, _ = env.reset(seed=5)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    assert env.observation_space.contains(obs_a)
+    total = 0.0
+    for _ in range(20):
+        _, reward, _, _, info = env.step(np.array([0.6, 0.6], dtype=np.float32))
+        total += reward
+        assert info["label"] == 0 and info["contacts"] == []
+    assert total > 0.3  # moved forward
+
+
+def test_info_labels_faults_and_collisions() -> None:
+    scenario = straight(
+        duration=5.0, faults=(Fault("bearing", 1, 0.8, 0.0),), obstacles=(Obstacle("box", -9.0, 0.0),)
+    )
+    env = make_env(scenario)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert (
+        info["label"] == sim.vocab.MECHANICAL and info["sub_kind"] == "bearing" and info["label_wheel"] == 1
+    )
+    seen = []
+    for _ in range(40):
+        info = env.step(np.array([1.0, 1.0], dtype=np.float32))[4]
+        seen += [c["obstacle_kind"] for c in info["contacts"]]
+        if seen:
+            assert info["label"] == sim.vocab.COLLISION and info["sub_kind"] == "box"
+            break
+    assert seen == ["box"]
+
+
+def test_episode_truncates_at_scenario_duration() -> None:
+    env = make_env(straight(duration=0.5))
+    env.reset(seed=1)
+    steps = 0
+    truncated = False
+    while not truncated:
+        truncated = env.step(np.zeros(2, dtype=np.float32))[3]
+        steps += 1
+    assert steps == pytest.approx(0.5 / 0.04, abs=1)
+
+
+def test_dm_env_specs_reset_and_step() -> None:
+    env = make_dm_env(straight(duration=0.4), seed=2)
+    spec = env.observation_spec()
+    assert spec["imu"].shape == (7,) and spec["wheels"].shape == (8,)
+    action = env.action_spec()
+    assert action.shape == (2,) and float(action.minimum) == -1.0 and float(action.maximum) == 1.0
+    first = env.reset()
+    assert first.step_type == StepType.FIRST and first.reward is None
+    for key, value in first.observation.items():
+        spec[key].validate(value)
+        assert np.all(np.isfinite(value))
+    kinds = []
+    while True:
+        ts = env.step(np.array([0.5, -0.5], dtype=np.float32))
+        kinds.append(ts.step_type)
+        if ts.last():
+            break
+    assert kinds[:-1] == [StepType.MID] * (len(kinds) - 1) and len(kinds) == 10
+    assert env.step(np.zeros(2, dtype=np.float32)).step_type == StepType.FIRST
+
+
+def test_make_dm_env_default_scenario() -> None:
+    env = make_dm_env(seed=4)
+    ts = env.reset()
+    assert ts.observation["wheels"].dtype == np.float32

@@ -29,6 +29,7 @@ from torch.nn import functional as F
 
 from benchmarks.methods.deep_base import DeepDetector, reconstruction_error, scale_config
 from msvdd.config import MSVDDConfig
+from msvdd.losses import huber_per_window
 from msvdd.network import FusionNet
 
 CENTER_MIN = 0.1
@@ -107,9 +108,9 @@ class DeepAutoencoder(DeepDetector):
         i_tok = net.imu_encoder(imu) if net.imu_encoder is not None else None
         err = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
         if a_tok is not None:
-            err = err + F.huber_loss(net.audio_decoder(a_tok), audio, reduction="none").mean(dim=(1, 2))
+            err = err + huber_per_window(audio, net.audio_decoder(a_tok))
         if i_tok is not None:
-            err = err + F.huber_loss(net.imu_decoder(i_tok), imu, reduction="none").mean(dim=1)
+            err = err + huber_per_window(imu, net.imu_decoder(i_tok))
         return err
 
     def loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -139,15 +140,15 @@ class _VAEModule(nn.Module):
         rec = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
         kl = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
         branches = (
-            (a_tok, self.logvar_a, net.audio_decoder, audio, (1, 2)),
-            (i_tok, self.logvar_i, net.imu_decoder, imu, (1,)),
+            (a_tok, self.logvar_a, net.audio_decoder, audio),
+            (i_tok, self.logvar_i, net.imu_decoder, imu),
         )
-        for tok, head, decoder, target, dims in branches:
+        for tok, head, decoder, target in branches:
             if tok is None or head is None or decoder is None:
                 continue
             logvar = head(tok).clamp(-10.0, 10.0)
             sample = tok + torch.exp(0.5 * logvar) * torch.randn_like(tok) if self.training else tok
-            rec = rec + F.huber_loss(decoder(sample), target, reduction="none").mean(dim=dims)
+            rec = rec + huber_per_window(target, decoder(sample))
             kl = kl + 0.5 * (tok**2 + logvar.exp() - 1.0 - logvar).mean(dim=(1, 2))
         return z, rec, kl
 

@@ -18,11 +18,11 @@ from typing import Any, ClassVar, Self
 import numpy as np
 import torch
 from torch import nn
-from torch.nn import functional as F
 
 from benchmarks.methods.base import WindowDetector, check_scale
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
+from msvdd.losses import reconstruction_loss
 from msvdd.network import NetOutput
 from msvdd.preprocess import Normalizer
 from msvdd.training import prepare_tensors, resolve_device, split_train_val, train_network
@@ -39,13 +39,8 @@ def scale_config(scale: str, seed: int, **overrides: Any) -> MSVDDConfig:
 
 
 def reconstruction_error(out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
-    """(N,) per-window Huber reconstruction error: mean over samples, summed over reconstructed modalities."""
-    err = torch.zeros(audio.shape[0], dtype=audio.dtype, device=audio.device)
-    if out.audio_rec is not None:
-        err = err + F.huber_loss(out.audio_rec, audio, reduction="none").mean(dim=(1, 2))
-    if out.imu_rec is not None:
-        err = err + F.huber_loss(out.imu_rec, imu, reduction="none").mean(dim=1)
-    return err
+    """(N,) M-SVDD's per-window Huber reconstruction loss over the modalities the network reconstructs."""
+    return reconstruction_loss(audio, out.audio_rec, imu, out.imu_rec)
 
 
 class DeepDetector(WindowDetector):

@@ -112,7 +112,7 @@ class MSVDD:
             self._init_center(train_t)
         self._mcd_calls = 0
         self.history_ = train_network(
-            self.module, self._loss, train_t, val_t, cfg, val_loss_fn=self._val_loss
+            self.module, self.batch_loss, train_t, val_t, cfg, val_loss_fn=self._val_loss
         )
         self._finalise(train_t)
         return self
@@ -165,7 +165,8 @@ class MSVDD:
         a1, a2, a3 = cfg.alpha
         return LossTerms(total=a1 * svdd + a2 * rec + a3 * reg, svdd=svdd, rec=rec, reg=reg)
 
-    def _loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+    def batch_loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        """Training loss of one (audio, imu) batch (the `loss_fn` given to `train_network`)."""
         audio, imu = batch
         self._mcd_calls += 1
         seed = self.config.seed * 1_000_003 + self._mcd_calls
@@ -207,8 +208,7 @@ class MSVDD:
 
     def _embed_tensors(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
         outs = []
-        self.module.eval()
-        with torch.no_grad():
+        with torch.inference_mode():
             for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
                 outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
         return torch.cat(outs)
@@ -220,8 +220,7 @@ class MSVDD:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
         cfg = self.config
         d_all, rec_all = [], []
-        self.module.eval()
-        with torch.no_grad():
+        with torch.inference_mode():
             for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
                 a, i = a.to(self.device), i.to(self.device)
                 out = self.module.net(a, i)

@@ -2,12 +2,12 @@
 
 Shapes (defaults, d = 32, s = 32):
 
-- audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 98, d) tokens,
-  one per 90 audio samples (20.4 ms).
+- audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 49, d) tokens,
+  one per 180 audio samples (40.8 ms, matching the 40 ms IMU tokens).
 - imu (N, 400) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM layers) -> (N, 50, d) tokens.
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
   (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
-  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 98 tokens), summed and projected
+  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 49 tokens), summed and projected
   to s. The ablation variants concatenate, add or multiply the pooled encoder features.
 - `AudioDecoder` (six transposed convolutions) and `ImuDecoder` (LSTM layers) reconstruct the inputs from the
   encoders' token sequences.
@@ -27,12 +27,12 @@ from msvdd.contract import AUDIO_LEN, IMU_LEN
 FUSIONS = ("cross_attention", "concat", "sum", "product")
 """Fusion variants: the paper's cross-attention and the three ablation alternatives."""
 
-AUDIO_STRIDES = (5, 3, 3, 2, 1, 1)
-"""Stride of each of the six audio convolutions; their product (90) is the audio samples per token."""
+AUDIO_STRIDES = (5, 3, 3, 2, 2, 1)
+"""Stride of each of the six audio convolutions; their product (180) is the audio samples per token."""
 AUDIO_CHANNELS = (16, 32, 48, 64, 64, 64)
 """Output channels of each audio convolution."""
 AUDIO_TOKENS = AUDIO_LEN // math.prod(AUDIO_STRIDES)
-"""Audio tokens per window (98)."""
+"""Audio tokens per window (49)."""
 IMU_FRAME = 8
 """IMU samples per IMU token (40 ms at 200 Hz)."""
 IMU_TOKENS = IMU_LEN // IMU_FRAME
@@ -68,7 +68,7 @@ def _pool(tokens: torch.Tensor) -> torch.Tensor:
 
 
 class AudioEncoder(nn.Module):
-    """CRNN: six 1-D convolutions (strided, GELU) and one LSTM; (N, 8820, 2) -> (N, T_A, d) tokens."""
+    """CRNN: six 1-D convolutions (strided, ReLU) and one LSTM; (N, 8820, 2) -> (N, T_A, d) tokens."""
 
     def __init__(self, d: int) -> None:
         super().__init__()
@@ -82,7 +82,7 @@ class AudioEncoder(nn.Module):
         self.lstm = nn.LSTM(c_in, d, batch_first=True)
 
     def forward(self, audio: torch.Tensor) -> torch.Tensor:
-        """audio (N, L, 2) -> tokens (N, L / 90, d)."""
+        """audio (N, L, 2) -> tokens (N, L / 180, d)."""
         h = self.convs(audio.transpose(1, 2))
         tokens, _ = self.lstm(h.transpose(1, 2))
         return tokens
@@ -118,7 +118,7 @@ class AudioDecoder(nn.Module):
         self.deconvs = nn.Sequential(*layers)
 
     def forward(self, tokens: torch.Tensor) -> torch.Tensor:
-        """tokens (N, T_A, d) -> audio (N, 90 T_A, 2)."""
+        """tokens (N, T_A, d) -> audio (N, 180 T_A, 2)."""
         out = self.deconvs(tokens.transpose(1, 2))
         return out.transpose(1, 2)
 

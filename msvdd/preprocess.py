@@ -8,17 +8,18 @@
 - `frame_windows`: 2 s windows at given start times.
 - `Normalizer`: per-channel z-score statistics fitted on training windows only, saved with the model.
 - `smooth`: the paper's smoothing filter, a Savitzky-Golay filter along time within each window
-  (no state crosses a window boundary).
+  (edges mirrored within the window; no state crosses a window boundary).
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Self
 
 import numpy as np
 import torch
-from scipy import signal
+from scipy import ndimage, signal
 
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError, Windows
 
@@ -103,7 +104,13 @@ def smooth(x: np.ndarray, window: int, polyorder: int) -> np.ndarray:
     """Savitzky-Golay smoothing along axis 1 (time) of (N, L) or (N, L, C), each window on its own."""
     if window == 0:
         return x
-    return signal.savgol_filter(x, window, polyorder, axis=1, mode="interp").astype(np.float32)
+    coeffs = _savgol_coeffs(window, polyorder)
+    return ndimage.convolve1d(x.astype(np.float32, copy=False), coeffs, axis=1, mode="mirror")
+
+
+@functools.lru_cache(maxsize=8)
+def _savgol_coeffs(window: int, polyorder: int) -> np.ndarray:
+    return signal.savgol_coeffs(window, polyorder).astype(np.float32)
 
 
 @dataclass(frozen=True)

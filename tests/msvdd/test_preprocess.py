@@ -116,6 +116,6 @@ def test_smoothing_is_per_window() -> None:
 def test_smoothing_keeps_quadratics_and_attenuates_noise() -> None:
     t = np.linspace(-1, 1, 400)[None, :]
     quad = 3 * t**2 - t + 0.5
-    np.testing.assert_allclose(smooth(quad, 5, 2), quad, atol=1e-5)  # Savitzky-Golay is exact on degree 2
+    np.testing.assert_allclose(smooth(quad, 5, 2)[:, 2:-2], quad[:, 2:-2], atol=1e-5)  # exact on degree 2
     noise = np.random.default_rng(0).standard_normal((1, 4000))
     assert smooth(noise, 5, 2).std() < 0.9 * noise.std()

@@ -57,8 +57,9 @@ def motor_wheel(
     unit_rng: np.random.Generator,
     brush_noise: np.ndarray,
     pwm_offset: float,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Mono motor + gearbox sound of one wheel's drive, float32 (n,)."""
+    """Mono motor + gearbox sound of one wheel's drive, float32 (n,), added into `out` if given."""
     robot = drive.robot
     sr = drive.sample_rate
     limit = _NYQUIST_FRACTION * sr
@@ -81,7 +82,8 @@ def motor_wheel(
     pwm_env = _PWM_LEVEL * load
     comm_mult = 2 * robot.motor_pole_pairs  # commutations per shaft revolution
     elec_mult = robot.motor_pole_pairs  # electrical cycles per shaft revolution
-    out = np.empty(drive.n, dtype=np.float32)
+    if out is None:
+        out = np.zeros(drive.n, dtype=np.float32)
     for span in drive.spans():
         a, b = span
         shaft = drive.phase(wheel, robot.gear_ratio, span)
@@ -110,5 +112,5 @@ def motor_wheel(
                 tmp *= side
             tmp *= drive.ramp(pwm_env, span)
             tonal += tmp
-        out[a:b] = tonal
+        out[a:b] += tonal
     return out

@@ -53,11 +53,22 @@ def _body_sources(robot: RobotInfo) -> np.ndarray:
     return np.vstack([wheels, np.mean(wheels, axis=0, keepdims=True)])
 
 
-def _robot_buses(drive: Drive, surface: str, seed: int, trace: Trace | None) -> dict[str, np.ndarray]:
-    """Mono buses (W + 1, n) per robot source group; the last row is the chassis. Events need `trace`."""
+def _robot_buses(
+    drive: Drive, surface: str, seed: int, trace: Trace | None, merged: bool = False
+) -> dict[str, np.ndarray]:
+    """Mono buses (W + 1, n) per robot source group; the last row is the chassis. Events need `trace`.
+
+    With `merged`, every group accumulates into one bus array (same samples, no per-group copies); all
+    dictionary entries are then the same array.
+    """
     robot = drive.robot
     w, n, sr = drive.n_wheels, drive.n, drive.sample_rate
-    buses = {name: np.zeros((w + 1, n), dtype=np.float32) for name in ("motor", "rolling")}
+    shared = np.zeros((w + 1, n), dtype=np.float32) if merged else None
+
+    def bus() -> np.ndarray:
+        return shared if shared is not None else np.zeros((w + 1, n), dtype=np.float32)
+
+    buses = {"motor": bus(), "rolling": bus()}
     noise_rng = _rng(seed, "noise")
     spec = SURFACES[surface]
     road = noise_loop(noise_rng, n, sr, spec.points_hz, spec.gains_db)
@@ -66,14 +77,24 @@ def _robot_buses(drive: Drive, surface: str, seed: int, trace: Trace | None) -> 
     motor_rng = _rng(seed, "motor")
     for i in range(w):
         shift = int(n * i / w) + int(noise_rng.integers(0, max(n // (4 * w), 1)))
-        buses["motor"][i] = motor_wheel(
-            drive, i, _unit_rng(robot, i), np.roll(brush, shift), float(motor_rng.uniform())
-        )
-        buses["rolling"][i] = rolling_wheel(drive, i, spec, np.roll(road, shift), roll_rng)
-    buses["rolling"][w] = chassis_rattle(drive, spec, roll_rng)
+        pwm_offset = float(motor_rng.uniform())
+        motor_wheel(drive, i, _unit_rng(robot, i), np.roll(brush, shift), pwm_offset, buses["motor"][i])
+        rolling_wheel(drive, i, spec, np.roll(road, shift), roll_rng, buses["rolling"][i])
+    buses["rolling"][w] += chassis_rattle(drive, spec, roll_rng)
     if trace is None:
         return buses
-    buses["transients"] = np.zeros((w + 1, n), dtype=np.float32)
+    buses["faults"] = bus()
+    fault_rng = _rng(seed, "faults")
+    # Each faulty wheel's nominal sound (motor + rolling), taken before any fault is added.
+    nominal = {
+        f.wheel: buses["motor"][f.wheel].copy()
+        if merged
+        else buses["motor"][f.wheel] + buses["rolling"][f.wheel]
+        for f in trace.faults
+    }
+    for fault in trace.faults:
+        buses["faults"][fault.wheel] += fault_sound(drive, fault, nominal[fault.wheel], fault_rng)
+    buses["transients"] = bus()
     tr_rng = _rng(seed, "transients")
     tr = trace.transients
     for i in range(len(tr.kind)):
@@ -82,11 +103,6 @@ def _robot_buses(drive: Drive, surface: str, seed: int, trace: Trace | None) -> 
         speed = float(np.interp(t, drive.block_time, drive.speed_mps[wheel]))
         sound = transient(tr.kind[i], float(tr.impulse[i]), speed, sr, tr_rng)
         add_at(buses["transients"][wheel], round(t * sr), sound)
-    buses["faults"] = np.zeros((w + 1, n), dtype=np.float32)
-    fault_rng = _rng(seed, "faults")
-    for fault in trace.faults:
-        nominal = buses["motor"][fault.wheel] + buses["rolling"][fault.wheel]
-        buses["faults"][fault.wheel] += fault_sound(drive, fault, nominal, fault_rng)
     return buses
 
 
@@ -211,7 +227,8 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
         "transients": config.gain_transients_db,
         "faults": config.gain_faults_db,
     }
-    buses = _robot_buses(drive, trace.surface, seed, trace)
+    merged = not config.stems and all(g == 0.0 for g in gains_db.values())
+    buses = _robot_buses(drive, trace.surface, seed, trace, merged)
     delays, gains = point_gains(
         _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
     )
@@ -221,22 +238,29 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             stems[name] = _spatialize(bus, delays, gains) * np.float32(
                 scale * 10.0 ** (gains_db[name] / 20.0)
             )
+    elif merged:
+        stems["robot"] = _spatialize(buses["motor"], delays, gains)
+        stems["robot"] *= np.float32(scale)
     else:
-        total = sum(bus * np.float32(10.0 ** (gains_db[name] / 20.0)) for name, bus in buses.items())
-        stems["robot"] = _spatialize(np.asarray(total), delays, gains) * np.float32(scale)
+        total = np.zeros_like(buses["motor"])
+        for name, bus in buses.items():
+            total += bus * np.float32(10.0 ** (gains_db[name] / 20.0))
+        stems["robot"] = _spatialize(total, delays, gains)
+        stems["robot"] *= np.float32(scale)
     impacts = _impacts(trace, sr, seed, config.speed_of_sound)
     impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
     stems["impacts"] = impacts
     indoor = trace.environment == "indoor"
     reverb = indoor and config.rt60_s > 0
     room = Room(config.rt60_s, sr, n, _rng(seed, "room")) if reverb else None
+    room_spectrum = None
     if room is not None:
         dry = np.zeros(n, dtype=np.float32)
         for part in stems.values():
             dry += part[0]
             dry += part[1]
-        send = dry * np.float32(0.5 * 10.0 ** (config.room_send_db / 20.0))
-        stems["room"] = room.apply(send)
+        dry *= np.float32(0.5 * 10.0 ** (config.room_send_db / 20.0))
+        room_spectrum = room.send_spectrum(dry)
     if config.ambience:
         scene = amb.Scene(
             n, sr, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),
@@ -247,16 +271,28 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz, DECIMATION)
         else:
             env, env_send = amb.outdoor(scene, env_rng, config.bird_rate_hz)
+        env_spectrum = None
+        energy = float(np.sum(np.square(env, dtype=np.float64)))
         if env_send.size and room is not None:
-            env += room.apply_low(env_send)
+            env_spectrum = room.send_spectrum_low(env_send)
+            energy += room.wet_energy(env_spectrum)  # the distant sources' reverberation (Parseval)
         elif env_send.size:  # no reverberation asked for: the distant sources arrive dry
             t_low = np.arange(env_send.size) * DECIMATION
             env += np.interp(np.arange(n), t_low, env_send).astype(np.float32)[None, :]
-        level = rms(env)
+            energy = float(np.sum(np.square(env, dtype=np.float64)))
+        level = float(np.sqrt(energy / env.size))
         target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
-        if level > 0:
-            env *= np.float32(target / level)
+        gain = target / level if level > 0 else 0.0
+        env *= np.float32(gain)
+        if room is not None and env_spectrum is not None:
+            env_spectrum *= np.complex64(gain)
+            if config.stems:
+                env += room.wet(env_spectrum)
+            elif room_spectrum is not None:  # one inverse FFT for the robot's and the rooms' reverberation
+                room_spectrum += env_spectrum
         stems["ambience"] = env
+    if room is not None and room_spectrum is not None:
+        stems["room"] = room.wet(room_spectrum)
     if math.isfinite(config.mic_noise_dbfs):
         noise_rng = _rng(seed, "mic_noise")
         noise = np.stack([white(noise_rng, n), white(noise_rng, n)])

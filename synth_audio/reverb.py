@@ -53,18 +53,39 @@ class Room:
         spec = sfft.rfft(ir, low, axis=-1)[:, : self.bins]
         self.spectrum = (spec * np.float32(np.sqrt(DECIMATION))).astype(np.complex64)
 
-    def apply(self, send: np.ndarray) -> np.ndarray:
-        """(2, n) reverberation of a mono full-rate send."""
-        s = sfft.rfft(send.astype(np.float32, copy=False), self.nfft)[: self.bins]
-        return self._wet(s)
+    def send_spectrum(self, send: np.ndarray) -> np.ndarray:
+        """Low band of the spectrum of a mono full-rate send (what the room responds to)."""
+        return sfft.rfft(send.astype(np.float32, copy=False), self.nfft)[: self.bins]
 
-    def apply_low(self, send: np.ndarray) -> np.ndarray:
-        """(2, n) full-rate reverberation of a mono send sampled at sample_rate / DECIMATION."""
+    def send_spectrum_low(self, send: np.ndarray) -> np.ndarray:
+        """The same for a mono send sampled at sample_rate / DECIMATION."""
         s = sfft.rfft(send.astype(np.float32, copy=False), self.nfft // DECIMATION)[: self.bins]
         s *= np.float32(DECIMATION)
-        return self._wet(s)
+        return s
 
-    def _wet(self, send_spectrum: np.ndarray) -> np.ndarray:
+    def wet(self, send_spectrum: np.ndarray) -> np.ndarray:
+        """(2, n) full-rate reverberation of a send spectrum (sums of send spectra are allowed)."""
         full = np.zeros((2, self.nfft // 2 + 1), dtype=np.complex64)
         full[:, : self.bins] = self.spectrum * send_spectrum[None, :]
         return sfft.irfft(full, self.nfft, axis=-1)[:, : self.n].astype(np.float32, copy=False)
+
+    def wet_energy(self, send_spectrum: np.ndarray) -> float:
+        """Sum of squares of `wet(send_spectrum)` over both channels and n samples.
+
+        The wet signal is band-limited below sample_rate / (2 DECIMATION), so it is evaluated at the reduced
+        rate (a quarter-size inverse FFT): sum over n full-rate samples = sum over n / DECIMATION samples
+        of the reduced-rate signal / DECIMATION (up to edge effects of the finite window).
+        """
+        low = self.nfft // DECIMATION
+        spec = np.zeros((2, low // 2 + 1), dtype=np.complex64)
+        spec[:, : self.bins] = self.spectrum * send_spectrum[None, :]
+        wet_low = sfft.irfft(spec, low, axis=-1)[:, : -(-self.n // DECIMATION)]
+        return float(np.sum(np.square(wet_low, dtype=np.float64)) / DECIMATION)
+
+    def apply(self, send: np.ndarray) -> np.ndarray:
+        """(2, n) reverberation of a mono full-rate send."""
+        return self.wet(self.send_spectrum(send))
+
+    def apply_low(self, send: np.ndarray) -> np.ndarray:
+        """(2, n) full-rate reverberation of a mono send sampled at sample_rate / DECIMATION."""
+        return self.wet(self.send_spectrum_low(send))

@@ -55,11 +55,17 @@ def speed_law(drive: Drive, wheel: int, exponent: float) -> np.ndarray:
 
 
 def rolling_wheel(
-    drive: Drive, wheel: int, surface: Surface, noise: np.ndarray, rng: np.random.Generator
+    drive: Drive,
+    wheel: int,
+    surface: Surface,
+    noise: np.ndarray,
+    rng: np.random.Generator,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Mono rolling sound of one wheel: shaped noise, tread tone and grain clicks, float32 (n,)."""
+    """Mono rolling sound of one wheel (shaped noise, tread tone, grain clicks), added into `out` if given."""
     robot = drive.robot
-    out = np.empty(drive.n, dtype=np.float32)
+    if out is None:
+        out = np.zeros(drive.n, dtype=np.float32)
     noise_env = surface.level * speed_law(drive, wheel, 1.2)
     tread_env = surface.tread * speed_law(drive, wheel, 1.0)
     for span in drive.spans():
@@ -69,7 +75,7 @@ def rolling_wheel(
             tone = wavetable(drive.phase(wheel, float(robot.tread_blocks), span), _TREAD_TABLE)
             tone *= drive.ramp(tread_env, span)
             part += tone
-        out[a:b] = part
+        out[a:b] += part
     if surface.grain_per_m > 0:
         distance = drive.speed_mps[wheel][:-1] * np.diff(drive.block_time)
         pos, amp = poisson_events(rng, distance * surface.grain_per_m, drive.n)

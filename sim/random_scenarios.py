@@ -298,7 +298,8 @@ def _route(
         return _wander(rng, arena, obstacles, duration)
     first, begin = _first_ram(rng, obstacles, arena)
     rest, _ = _wander(rng, arena, obstacles, duration, begin=np.array([first[-1].x, first[-1].y]))
-    start = (float(begin[0]), float(begin[1]), float(rng.uniform(-math.pi, math.pi)))
+    heading = math.atan2(first[0].y - begin[1], first[0].x - begin[0])
+    start = (float(begin[0]), float(begin[1]), heading + float(rng.uniform(-0.3, 0.3)))
     waypoints = first + rest
     n_more = min(3, int(duration // 60.0))
     if n_more:
@@ -309,7 +310,9 @@ def _route(
 def _first_ram(
     rng: np.random.Generator, obstacles: list[Obstacle], arena: tuple[float, float]
 ) -> tuple[list[Waypoint], np.ndarray]:
-    """Ram legs at obstacle 0 and a start point a short nominal drive (2-5 m) from their approach point."""
+    """Ram legs at obstacle 0 and a start point a short nominal drive (1.5-3.5 m) from their approach
+    point, roughly in line with the ram so that the hit comes within the first ~12 s of an episode."""
+    hx, hy = arena
     for _ in range(200):
         legs = _ram_legs(rng, obstacles[0], obstacles[1:], arena)
         if legs is None:
@@ -317,11 +320,14 @@ def _first_ram(
         approach = np.array([legs[0].x, legs[0].y])
         if _clearance(approach[None], obstacles) < 0.6:
             continue
+        ram = np.array([legs[1].x, legs[1].y]) - approach
+        along = math.atan2(ram[1], ram[0])
         for _ in range(30):
-            begin = _free_point(rng, arena, obstacles)
-            if begin is None:
-                break
-            if 2.0 <= float(np.linalg.norm(begin - approach)) <= 5.0 and _segment_clear(
+            angle = along + float(rng.uniform(-0.8, 0.8))
+            begin = approach - float(rng.uniform(1.5, 3.5)) * np.array([math.cos(angle), math.sin(angle)])
+            if abs(begin[0]) > hx - 0.8 or abs(begin[1]) > hy - 0.8:
+                continue
+            if _clearance(begin[None], obstacles) > CLEARANCE and _segment_clear(
                 begin, approach, obstacles, 0.6
             ):
                 return legs, begin
@@ -429,9 +435,9 @@ def _ram_legs(
 ) -> list[Waypoint] | None:
     """Approach point, ram leg (speed and angle drawn) and retreat, or None if the draw is blocked."""
     hx, hy = arena
-    speed = float(rng.uniform(0.4, 1.4))
+    speed = float(rng.uniform(0.5, 1.4))
     angle = float(rng.uniform(-0.7, 0.7))
-    run = float(rng.uniform(2.0, 3.0))
+    run = float(rng.uniform(1.6, 2.4))
     c, s = math.cos(target.yaw), math.sin(target.yaw)
     if target.kind == "pedestrian":
         mid = (
@@ -470,7 +476,7 @@ def _ram_legs(
     aim = face + direction * 0.4
     aim = np.clip(aim, [-hx + 0.31, -hy + 0.31], [hx - 0.31, hy - 0.31])
     return [
-        Waypoint(float(approach[0]), float(approach[1]), 0.7, float(rng.uniform(0.3, 1.0))),
+        Waypoint(float(approach[0]), float(approach[1]), 0.7, float(rng.uniform(0.2, 0.6))),
         Waypoint(float(aim[0]), float(aim[1]), speed, 0.0, ram=0),
         Waypoint(float(approach[0]), float(approach[1]), 0.5, 0.0),
     ]

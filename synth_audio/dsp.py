@@ -10,8 +10,8 @@ _INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
 NOISE_PERIOD = 2**18
 """Length of the looped noise beds, samples (5.9 s at 44.1 kHz)."""
 _SPAN = 2**14
-TABLE_SIZE = 8192
-"""Points per cycle of the harmonic wavetables."""
+TABLE_SIZE = 2**16
+"""Points per cycle of the harmonic wavetables (a power of two)."""
 
 
 def white(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -66,31 +66,26 @@ def noise_loop(
 def harmonic_table(
     harmonics: np.ndarray, amps: np.ndarray, phases: np.ndarray, size: int = TABLE_SIZE
 ) -> np.ndarray:
-    """One period of sum_k amps[k] sin(2 pi harmonics[k] x + phases[k]) on `size` + 1 points (wraps)."""
-    x = np.arange(size + 1, dtype=np.float64) / size
-    h = np.asarray(harmonics, dtype=np.float64)[:, None]
-    table = np.sum(
-        np.asarray(amps)[:, None] * np.sin(2 * np.pi * h * x[None, :] + np.asarray(phases)[:, None]), axis=0
-    )
-    return table.astype(np.float32)
+    """One period of sum_k amps[k] sin(2 pi harmonics[k] x + phases[k]) on `size` points (one inverse FFT).
+
+    Harmonic numbers must be positive integers below size / 2.
+    """
+    spectrum = np.zeros(size // 2 + 1, dtype=np.complex128)
+    for k, a, p in zip(np.asarray(harmonics), np.asarray(amps), np.asarray(phases), strict=True):
+        spectrum[round(float(k))] += 0.5 * size * a * np.exp(1j * (p - 0.5 * np.pi))
+    return sfft.irfft(spectrum, size).astype(np.float32)
 
 
 def wavetable(phase: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """Periodic waveform `table` (size + 1 points over one cycle) read at `phase` cycles (linear interp.)."""
-    size = table.size - 1
-    pos = phase - np.floor(phase)
-    pos *= np.float32(size)
-    whole = np.floor(pos)
-    pos -= whole
-    idx = whole.astype(np.intp)
-    np.minimum(idx, size - 1, out=idx)
-    lo = np.take(table, idx)
-    idx += 1
-    hi = np.take(table, idx)
-    hi -= lo
-    hi *= pos
-    hi += lo
-    return hi
+    """Periodic waveform `table` (power-of-two size, one cycle) read at `phase` cycles (>= 0).
+
+    Nearest-point lookup: with the default 65536-point table the phase error is below 1e-4 cycle, so
+    even the 40th harmonic is reproduced with spurious content under -50 dB.
+    """
+    size = table.size
+    idx = (phase * np.float32(size)).astype(np.int32)
+    idx &= size - 1
+    return np.take(table, idx)
 
 
 def normalise_rms(x: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sim_kit import straight
 
-from sim import simulate
+from sim import simulate, vocab
 from sim.engine import CONTROL_STEPS, Engine
 from sim.events import contact_events
 from sim.scenario import Obstacle, Scenario, Unit
@@ -114,7 +114,7 @@ def test_collision_run_labels_the_contact() -> None:
     t0 = trace.contacts.time[0]
     at = np.searchsorted(trace.imu_time, t0 + 0.01)
     assert trace.label[at] == 1
-    assert trace.sub_kind[at] == 1 + 5  # SUB_KINDS: none, wall, door, curb, desk, chair, box, ...
+    assert trace.sub_kind[at] == vocab.sub_kind_index("box")
     assert trace.contacts.material[0] == "cardboard"
 
 

@@ -1,0 +1,81 @@
+"""End to end through the real CLI on the tiny preset."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sklearn.metrics import roc_auc_score
+
+from benchmarks.cli import build_parser, main
+
+
+def test_every_subcommand_has_help() -> None:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    names = set(sub.choices)  # type: ignore[arg-type]
+    assert {"generate", "train", "evaluate", "run", "perf", "presets", "demo"} <= names
+    for name in sorted(names):
+        result = subprocess.run(
+            [sys.executable, "-m", "benchmarks.cli", name, "--help"],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert result.returncode == 0, result.stderr
+        assert "usage: msvdd-bench" in result.stdout
+
+
+def test_train_then_evaluate(tiny_dataset: Path, tiny_model: Path, tmp_path: Path) -> None:
+    model2 = tmp_path / "iforest"
+    assert (
+        main(["train", "--data", str(tiny_dataset), "--method", "iforest-early", "--out", str(model2)]) == 0
+    )
+    run = tmp_path / "run"
+    assert main(["evaluate", "--data", str(tiny_dataset), "--model", str(tiny_model), str(model2),
+                 "--out", str(run)]) == 0  # fmt: skip
+    results = json.loads((run / "results.json").read_text())
+    assert set(results["methods"]) == {"msvdd", "iforest-early"}
+    assert (run / "figures" / "roc_all.png").is_file()
+    # scores.csv lets anyone recompute every metric: its AUC is the reported one.
+    with open(run / "scores.csv", newline="") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["method"] == "msvdd"]
+    auc = roc_auc_score([int(r["label"]) for r in rows], [float(r["score"]) for r in rows])
+    assert auc == pytest.approx(results["methods"]["msvdd"]["auc"], abs=1e-12)
+    assert "F1 oracle" in (run / "results.md").read_text()
+
+
+def test_run_end_to_end(tiny_dataset: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    code = main(["run", "--preset", "tiny", "--data", str(tiny_dataset), "--out", str(out),
+                 "--methods", "audio-rms", "imu-kurtosis", "--no-progress"])  # fmt: skip
+    assert code == 0
+    results = json.loads((out / "results.json").read_text())
+    for name in ("audio-rms", "imu-kurtosis"):
+        entry = results["methods"][name]
+        assert 0.0 <= entry["auc"] <= 1.0
+        assert np.isfinite(entry["f1"])
+    assert "naive" in results["naive_verdict"]
+
+
+def test_bad_input_exits_2_with_a_message(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["generate", "--preset", "huge", "--out", str(tmp_path / "d")]) == 2
+    assert "unknown preset 'huge'" in capsys.readouterr().err
+    assert main(["evaluate", "--data", str(tmp_path / "nope"), "--model", str(tmp_path), "--out",
+                 str(tmp_path / "r")]) == 2  # fmt: skip
+    assert "not a dataset" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists() and not (tmp_path / "r").exists()
+
+
+def test_unknown_method_is_refused(
+    tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert (
+        main(["train", "--data", str(tiny_dataset), "--method", "magic", "--out", str(tmp_path / "m")]) == 2
+    )
+    assert "method 'magic' is unknown" in capsys.readouterr().err

@@ -1,0 +1,103 @@
+"""Dataset generation: layout, determinism, corruption detection, atomicity."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import benchmarks.dataset as ds
+from benchmarks.episode import EPISODE_FILES, read_episode
+from msvdd.contract import AUDIO_LEN, IMU_LEN
+
+
+def test_layout_manifest_and_windows(tiny_dataset: Path) -> None:
+    dataset = ds.open_dataset(tiny_dataset)
+    manifest = dataset.manifest
+    assert manifest["format_version"] == ds.DATASET_FORMAT_VERSION
+    assert manifest["preset"]["name"] == "tiny"
+    for episode in manifest["episodes"]:
+        folder = tiny_dataset / episode["episode_id"]
+        assert sorted(p.name for p in folder.iterdir()) == sorted(EPISODE_FILES)
+        assert set(episode["files"]) == set(EPISODE_FILES)
+    kinds = {(r.split, r.kind) for r in dataset.windows}
+    assert ("train", "normal") in kinds and ("val", "normal") in kinds
+    assert {("test", "normal"), ("test", "collision"), ("test", "mechanical")} <= kinds
+    assert all(r.kind == "normal" for r in dataset.windows if r.split != "test")
+    assert not list(tiny_dataset.parent.glob(".tiny.partial-*"))
+
+
+def test_windows_have_the_papers_shapes(tiny_dataset: Path) -> None:
+    windows, rows = ds.open_dataset(tiny_dataset).load_windows("test")
+    assert windows.audio.shape == (len(rows), AUDIO_LEN, 2)
+    assert windows.imu.shape == (len(rows), IMU_LEN)
+    # A window's IMU is the episode's IMU at that time, sample for sample.
+    row = rows[-1]
+    episode = read_episode(tiny_dataset / row.episode)
+    i0 = round(row.start_s * 200)
+    np.testing.assert_array_equal(windows.imu[-1], episode.imu_vel_z[i0 : i0 + IMU_LEN])
+
+
+def test_collision_windows_hold_the_contact(tiny_dataset: Path) -> None:
+    dataset = ds.open_dataset(tiny_dataset)
+    for row in (r for r in dataset.windows if r.kind == "collision"):
+        events = json.loads((tiny_dataset / row.episode / "events.json").read_text())
+        times = [c["time"] for c in events["contacts"] if c["obstacle_kind"] == row.sub_kind]
+        assert any(row.start_s - 0.5 <= t <= row.start_s + 2.0 for t in times), (row, times)
+
+
+def test_same_seed_same_checksums(tiny_dataset: Path, tmp_path: Path) -> None:
+    again = ds.generate("tiny", 0, tmp_path / "again", workers=1, progress=False)
+    first = json.loads((tiny_dataset / "manifest.json").read_text())
+    second = json.loads((again / "manifest.json").read_text())
+    assert first["episodes"] == second["episodes"]
+    assert first["windows"] == second["windows"]
+
+
+def test_checksum_mismatch_is_named(tiny_dataset: Path, tmp_path: Path) -> None:
+    copy = Path(shutil.copytree(tiny_dataset, tmp_path / "copy"))
+    episode = ds.open_dataset(copy).windows[0].episode
+    target = copy / episode / "imu.npz"
+    data = bytearray(target.read_bytes())
+    data[-10] ^= 0xFF
+    target.write_bytes(bytes(data))
+    with pytest.raises(ds.DatasetError, match=rf"checksum mismatch: .*{episode}/imu\.npz"):
+        ds.open_dataset(copy)
+
+
+def test_missing_file_and_other_version_are_named(tiny_dataset: Path, tmp_path: Path) -> None:
+    copy = Path(shutil.copytree(tiny_dataset, tmp_path / "copy"))
+    episode = ds.open_dataset(copy).windows[0].episode
+    (copy / episode / "audio.flac").unlink()
+    with pytest.raises(ds.DatasetError, match=r"missing dataset file: .*audio\.flac"):
+        ds.open_dataset(copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest["format_version"] = 99
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(ds.DatasetError, match="format_version 99"):
+        ds.open_dataset(copy)
+
+
+def test_interrupted_generation_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = {"n": 0}
+    real = ds.build_episode
+
+    def failing(spec: ds.EpisodeSpec, directory: Path) -> Path:
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(spec, directory)
+
+    monkeypatch.setattr(ds, "build_episode", failing)
+    with pytest.raises(KeyboardInterrupt):
+        ds.generate("tiny", 1, tmp_path / "data", workers=1, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_folder_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "data").mkdir()
+    with pytest.raises(FileExistsError, match="dataset folder exists already"):
+        ds.generate("tiny", 0, tmp_path / "data", workers=1, progress=False)

@@ -3,11 +3,14 @@
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Detector, WindowError, Windows
 from msvdd.mcd import MCDError, MCDResult, SingularCovarianceError, mahalanobis, min_cov_det
+from msvdd.model import MSVDD, ModelFormatError, NotFittedError
 from msvdd.network import AudioDecoder, AudioEncoder, Fusion, FusionNet, ImuDecoder, ImuEncoder, NetOutput
 from msvdd.preprocess import Normalizer, decimate_audio, frame_windows
+from msvdd.stream import StreamingScorer
 from msvdd.training import TrainResult, prepare_tensors, train_network
 
 __all__ = [
+    "MSVDD",
     "AudioDecoder",
     "AudioEncoder",
     "Detector",
@@ -18,9 +21,12 @@ __all__ = [
     "MCDError",
     "MCDResult",
     "MSVDDConfig",
+    "ModelFormatError",
     "NetOutput",
     "Normalizer",
+    "NotFittedError",
     "SingularCovarianceError",
+    "StreamingScorer",
     "TrainResult",
     "WindowError",
     "Windows",

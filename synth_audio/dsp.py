@@ -119,7 +119,7 @@ def frac_phase(cycles: np.ndarray, block: int, n: int) -> np.ndarray:
     """
     c = np.asarray(cycles, dtype=np.float64)
     base = c[..., :-1] - np.floor(c[..., :-1])
-    inc = np.diff(c, axis=-1)
+    inc = c[..., 1:] - c[..., :-1]
     ramp = np.arange(block, dtype=np.float32) / np.float32(block)
     out = base.astype(np.float32)[..., None] + inc.astype(np.float32)[..., None] * ramp
     return out.reshape(*c.shape[:-1], -1)[..., :n]

@@ -56,7 +56,7 @@ def motor_wheel(
     wheel: int,
     unit_rng: np.random.Generator,
     brush_noise: np.ndarray,
-    pwm_offset: float,
+    carrier: np.ndarray | None,
     out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Mono motor + gearbox sound of one wheel's drive, float32 (n,), added into `out` if given."""
@@ -75,10 +75,8 @@ def motor_wheel(
     ]
     tone_env = speed * (0.7 + 0.3 * load)
     brush_env = _BRUSH_LEVEL * speed
-    carrier_hz = robot.pwm_hz * (1.0 + 0.002 * unit_rng.normal())
-    pwm = carrier_hz < 0.46 * sr and bool(np.any(drive.torque[wheel] != 0))
-    sidebands = carrier_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
-    carrier_cycles = carrier_hz * drive.block_time + pwm_offset
+    pwm = carrier is not None and bool(np.any(drive.torque[wheel] != 0))
+    sidebands = robot.pwm_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
     pwm_env = _PWM_LEVEL * load
     comm_mult = 2 * robot.motor_pole_pairs  # commutations per shaft revolution
     elec_mult = robot.motor_pole_pairs  # electrical cycles per shaft revolution
@@ -100,17 +98,27 @@ def motor_wheel(
         tmp *= brush_noise[a:b]
         tmp *= drive.ramp(brush_env, span)
         tonal += tmp
-        if pwm:
+        if pwm and carrier is not None:
             # PWM carrier with sidebands at carrier +- 2 x electrical frequency.
-            b0, b1 = a // BLOCK, -(-b // BLOCK)
-            carrier = frac_phase(carrier_cycles[None, b0 : b1 + 1], BLOCK, b - a)[0]
-            tmp = np.cos(np.float32(2.0 * np.pi) * carrier)
+            tmp = carrier[a:b] * drive.ramp(pwm_env, span)
             if sidebands:
                 side = np.cos(np.float32(4.0 * np.pi * elec_mult) * shaft)
                 side *= np.float32(0.5)
                 side += np.float32(1.0)
                 tmp *= side
-            tmp *= drive.ramp(pwm_env, span)
             tonal += tmp
         out[a:b] += tonal
+    return out
+
+
+def pwm_carrier(drive: Drive, phase: float) -> np.ndarray | None:
+    """The drivers' shared PWM carrier cos(2 pi f_pwm t + phase) over the render, or None above Nyquist."""
+    hz = drive.robot.pwm_hz
+    if hz >= 0.46 * drive.sample_rate:
+        return None
+    cycles = (hz * drive.block_time + phase / (2.0 * np.pi))[None, :]
+    out = np.empty(drive.n, dtype=np.float32)
+    for a, b in drive.spans():
+        b0, b1 = a // BLOCK, -(-b // BLOCK)
+        out[a:b] = np.cos(np.float32(2.0 * np.pi) * frac_phase(cycles[:, b0 : b1 + 1], BLOCK, b - a)[0])
     return out

@@ -22,7 +22,7 @@ from synth_audio.drive import Drive, build_drive, reference_torque
 from synth_audio.dsp import add_at, noise_loop, rms, white
 from synth_audio.faults import fault_sound
 from synth_audio.impacts import impact, scrape
-from synth_audio.motor import motor_wheel
+from synth_audio.motor import motor_wheel, pwm_carrier
 from synth_audio.reverb import DECIMATION, Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
 from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
@@ -74,11 +74,10 @@ def _robot_buses(
     road = noise_loop(noise_rng, n, sr, spec.points_hz, spec.gains_db)
     brush = noise_loop(noise_rng, n, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
     roll_rng = _rng(seed, "rolling")
-    motor_rng = _rng(seed, "motor")
+    carrier = pwm_carrier(drive, float(_rng(seed, "motor").uniform(0.0, 2.0 * np.pi)))
     for i in range(w):
         shift = int(n * i / w) + int(noise_rng.integers(0, max(n // (4 * w), 1)))
-        pwm_offset = float(motor_rng.uniform())
-        motor_wheel(drive, i, _unit_rng(robot, i), np.roll(brush, shift), pwm_offset, buses["motor"][i])
+        motor_wheel(drive, i, _unit_rng(robot, i), np.roll(brush, shift), carrier, buses["motor"][i])
         rolling_wheel(drive, i, spec, np.roll(road, shift), roll_rng, buses["rolling"][i])
     buses["rolling"][w] += chassis_rattle(drive, spec, roll_rng)
     if trace is None:
@@ -247,9 +246,10 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             total += bus * np.float32(10.0 ** (gains_db[name] / 20.0))
         stems["robot"] = _spatialize(total, delays, gains)
         stems["robot"] *= np.float32(scale)
-    impacts = _impacts(trace, sr, seed, config.speed_of_sound)
-    impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
-    stems["impacts"] = impacts
+    if len(trace.contacts.material) or config.stems:
+        impacts = _impacts(trace, sr, seed, config.speed_of_sound)
+        impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
+        stems["impacts"] = impacts
     indoor = trace.environment == "indoor"
     reverb = indoor and config.rt60_s > 0
     room = Room(config.rt60_s, sr, n, _rng(seed, "room")) if reverb else None
@@ -296,9 +296,11 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     if math.isfinite(config.mic_noise_dbfs):
         noise_rng = _rng(seed, "mic_noise")
         noise = np.stack([white(noise_rng, n), white(noise_rng, n)])
-        stems["mic_noise"] = noise * np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
-    mix = np.zeros((2, n), dtype=np.float32)
-    for part in stems.values():
+        noise *= np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
+        stems["mic_noise"] = noise
+    parts = list(stems.values())
+    mix = parts[0].copy() if config.stems else parts[0]  # the first stem's buffer is free to reuse
+    for part in parts[1:]:
         mix += part
     if config.limiter:
         _limit(mix)

@@ -47,7 +47,7 @@ class Room:
         self.n = n
         ir = room_ir(rt60, sample_rate / DECIMATION, rng)
         full = n + ir.shape[1] * DECIMATION
-        self.nfft = int(2 ** np.ceil(np.log2(max(full, 2 * DECIMATION))))
+        self.nfft = DECIMATION * sfft.next_fast_len(-(-full // DECIMATION) + 1, real=True)
         low = self.nfft // DECIMATION
         self.bins = low // 2
         spec = sfft.rfft(ir, low, axis=-1)[:, : self.bins]

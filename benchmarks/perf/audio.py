@@ -103,7 +103,7 @@ def _measure(quick: bool) -> dict[str, float]:
     from synth_audio import AudioConfig, render
 
     duration = 2.0 if quick else 20.0
-    repeats = 1 if quick else 3
+    repeats = 1 if quick else 5
     figures: dict[str, float] = {}
     for environment in ("indoor", "outdoor"):
         trace = workload(duration, environment)

@@ -8,6 +8,7 @@ smoothing, network, Mahalanobis, reconstruction) on 1 thread for a batch of one 
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -104,6 +105,7 @@ def _mcd(quick: bool) -> dict[str, float]:
 
 def measure(quick: bool) -> dict[str, float]:
     """Figures of the detector stage (see `describe`)."""
+    load = os.getloadavg()[0]
     with _threads(2):
         train_rate = _train_rate(quick)
         model = _fitted_model(64 if quick else 128)
@@ -114,6 +116,7 @@ def measure(quick: bool) -> dict[str, float]:
         "infer_ms_per_window": ms_one,
         "infer_windows_per_s": rate,
         **_mcd(quick),
+        "load_avg_1min_at_start": load,
     }
 
 
@@ -131,5 +134,6 @@ STAGE = PerfStage(
         "mcd_support_agreement": "fraction of samples on which both supports agree (same answer: ~1)",
         "mcd_logdet_gap": "log det of our raw covariance minus sklearn's (<= ~0: as good or better)",
         "mcd_outliers_in_support": "planted outliers (15%) inside our support (should be 0)",
+        "load_avg_1min_at_start": "1-min load average at the start (above the cores: figures pessimistic)",
     },
 )

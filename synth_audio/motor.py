@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
-from synth_audio.dsp import frac_phase, harmonic_table, wavetable
+from synth_audio.dsp import TABLE_SIZE, frac_phase, harmonic_table, table_index
 
 _SHAFT = ((1, 0.18), (2, 0.28), (3, 0.1))
 """(harmonic of the shaft, weight): mechanical unbalance and misalignment."""
@@ -78,34 +78,32 @@ def motor_wheel(
     pwm = carrier is not None and bool(np.any(drive.torque[wheel] != 0))
     sidebands = robot.pwm_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
     pwm_env = _PWM_LEVEL * load
-    comm_mult = 2 * robot.motor_pole_pairs  # commutations per shaft revolution
-    elec_mult = robot.motor_pole_pairs  # electrical cycles per shaft revolution
+    # Modulations as functions of the shaft phase, read with the same table index as the tones:
+    # brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution); the PWM sidebands
+    # sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution).
+    x = np.arange(TABLE_SIZE) / TABLE_SIZE
+    brush_mod = (1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * robot.motor_pole_pairs * x)).astype(np.float32)
+    side_mod = (1.0 + 0.5 * np.cos(4.0 * np.pi * robot.motor_pole_pairs * x)).astype(np.float32)
     if out is None:
         out = np.zeros(drive.n, dtype=np.float32)
     for span in drive.spans():
         a, b = span
         shaft = drive.phase(wheel, robot.gear_ratio, span)
-        tonal = wavetable(shaft, table)
+        idx = table_index(shaft, TABLE_SIZE)
+        tonal = np.take(table, idx)
         for gate, k, ph in gated:
             tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
             tone *= drive.ramp(gate, span)
             tonal += tone
         tonal *= drive.ramp(tone_env, span)
-        # Brush noise, modulated at the commutation rate (2 x pole pairs per shaft revolution).
-        tmp = np.cos(np.float32(2.0 * np.pi * comm_mult) * shaft)
-        tmp *= np.float32(0.4)
-        tmp += np.float32(1.0)
+        tmp = np.take(brush_mod, idx)
         tmp *= brush_noise[a:b]
         tmp *= drive.ramp(brush_env, span)
         tonal += tmp
         if pwm and carrier is not None:
-            # PWM carrier with sidebands at carrier +- 2 x electrical frequency.
             tmp = carrier[a:b] * drive.ramp(pwm_env, span)
             if sidebands:
-                side = np.cos(np.float32(4.0 * np.pi * elec_mult) * shaft)
-                side *= np.float32(0.5)
-                side += np.float32(1.0)
-                tmp *= side
+                tmp *= np.take(side_mod, idx)
             tonal += tmp
         out[a:b] += tonal
     return out

@@ -1,9 +1,10 @@
 """Environment sound: indoor (HVAC, distant babble, doors in other rooms, room reverberation) and outdoor
 (wind with gusts, traffic, birds).
 
-Continuous beds are diffuse (partly coherent between the mics); events come from a direction in the world
-and are spatialised as plane waves for the robot's heading at that moment. Indoor events also feed a
-reverberation send, convolved later with `room_ir`.
+Continuous beds are diffuse (partly coherent between the mics). Outdoor events (birds) come from a direction
+in the world and are spatialised as plane waves for the robot's heading at that moment. Indoor babble and
+doors are in other rooms: they reach the robot through the reverberant field, so they are synthesised at the
+reverberation's reduced rate as a send that `synth_audio.reverb.Room` convolves.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from scipy.signal import lfilter
 _INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
 NOISE_PERIOD = 2**18
 """Length of the looped noise beds, samples (5.9 s at 44.1 kHz)."""
-_SPAN = 2**14
+_SPAN = 2**15
 TABLE_SIZE = 2**16
 """Points per cycle of the harmonic wavetables (a power of two)."""
 

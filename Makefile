@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 BENCH := $(VENV)/bin/msvdd-bench
 STAMP := $(VENV)/.installed
 
-.PHONY: venv test lint demo bench perf clean
+.PHONY: venv test lint demo bench ablations perf clean
 
 venv: $(STAMP)
 
@@ -31,6 +31,10 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BENCH) run --preset paper --seed 0 --out runs/paper
+
+# The module, fusion and latent ablations on the paper dataset that `make bench` generated.
+ablations: $(STAMP)
+	$(BENCH) run --preset paper --data runs/paper/dataset --out runs/paper-ablations --methods ablations
 
 perf: $(STAMP)
 	$(BENCH) perf --stage all --json runs/perf.json

@@ -70,6 +70,40 @@ QUICK_METHODS: tuple[str, ...] = (
     "imu-kurtosis",
 )
 
+TABLE1_METHODS: tuple[str, ...] = (
+    "msvdd",
+    "dsvdd",
+    "dae",
+    "vae-svdd",
+    "dagmm",
+    "deep-if",
+    "iforest-early",
+    "iforest-late",
+    "ocsvm-early",
+    "ocsvm-late",
+    "svdd-early",
+    "svdd-late",
+    "audio-rms",
+    "imu-kurtosis",
+)
+"""The paper's comparison (Table I) and the naive sanity baselines: what `make bench` trains."""
+
+ABLATION_METHODS: tuple[str, ...] = (
+    "msvdd-audio-only",
+    "msvdd-imu-only",
+    "msvdd-no-rec",
+    "msvdd-euclidean",
+    "msvdd-fusion-concat",
+    "msvdd-fusion-sum",
+    "msvdd-fusion-product",
+    "msvdd-s2",
+    "msvdd-s4",
+    "msvdd-s8",
+    "msvdd-s16",
+    "msvdd-s64",
+)
+"""The module, fusion and latent-dimension ablations (`make ablations`)."""
+
 _PRESETS: dict[str, Preset] = {
     "tiny": Preset(
         name="tiny",
@@ -140,6 +174,7 @@ _PRESETS: dict[str, Preset] = {
         test_hop_s=2.0,
         method_scale="paper",
         seeds=(0, 1, 2),
+        methods=TABLE1_METHODS,
     ),
     "hard": Preset(
         name="hard",
@@ -162,8 +197,25 @@ _PRESETS: dict[str, Preset] = {
         test_hop_s=2.0,
         method_scale="paper",
         seeds=(0, 1, 2),
+        methods=TABLE1_METHODS,
     ),
 }
+
+
+METHOD_GROUPS: dict[str, tuple[str, ...]] = {
+    "table1": TABLE1_METHODS,
+    "ablations": ("msvdd", *ABLATION_METHODS),
+}
+"""Names `--methods` accepts for a group of methods (plus `all`, every registered method)."""
+
+
+def expand_methods(names: list[str], registered: list[str]) -> list[str]:
+    """Method names with groups (`table1`, `ablations`, `all`) expanded, in order, without repeats."""
+    out: list[str] = []
+    for name in names:
+        group = registered if name == "all" else METHOD_GROUPS.get(name, (name,))
+        out += [n for n in group if n not in out]
+    return out
 
 
 def preset_names() -> list[str]:

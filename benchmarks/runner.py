@@ -15,7 +15,7 @@ from benchmarks import methods
 from benchmarks.dataset import generate, open_dataset
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
-from benchmarks.presets import get_preset
+from benchmarks.presets import expand_methods, get_preset
 from benchmarks.report import RunInfo, write_report
 
 
@@ -41,7 +41,7 @@ def run_benchmark(
     if out.exists():
         raise FileExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
     preset = get_preset(preset_name)
-    names = method_names or list(preset.methods) or methods.names()
+    names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
     for name in names:
         methods.spec(name)
     chosen_scale = check_scale(scale or preset.method_scale)

@@ -16,7 +16,12 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = "quick")
     p.add_argument("--preset", default=default_preset, help=f"dataset preset: {', '.join(preset_names())}")
     p.add_argument("--seed", type=int, default=0, help="dataset seed")
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
-    p.add_argument("--methods", nargs="+", default=None, help="methods to train (default: the preset's list)")
+    p.add_argument(
+        "--methods",
+        nargs="+",
+        default=None,
+        help="methods to train, or groups: table1, ablations, all (default: the preset's list)",
+    )
     p.add_argument("--data", type=Path, default=None, help="reuse this dataset instead of generating one")
     p.add_argument(
         "--workers", type=int, default=None, help="generation worker processes (default: one per CPU)"

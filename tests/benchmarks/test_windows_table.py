@@ -73,3 +73,14 @@ def test_paper_preset_has_the_papers_size() -> None:
 def test_unknown_preset_names_the_allowed_ones() -> None:
     with pytest.raises(ValueError, match="unknown preset 'huge'; allowed: tiny, quick, paper, hard"):
         get_preset("huge")
+
+
+def test_method_groups_expand_to_registered_methods() -> None:
+    from benchmarks import methods
+    from benchmarks.presets import ABLATION_METHODS, TABLE1_METHODS, expand_methods
+
+    registered = methods.names()
+    assert set(TABLE1_METHODS) <= set(registered) and set(ABLATION_METHODS) <= set(registered)
+    assert expand_methods(["table1", "msvdd"], registered) == list(TABLE1_METHODS)
+    assert expand_methods(["ablations"], registered)[0] == "msvdd"
+    assert expand_methods(["all"], registered) == registered

@@ -20,6 +20,7 @@ All four share `msvdd.network.FusionNet` (encoders, fusion, decoders), its norma
 
 from __future__ import annotations
 
+import abc
 import math
 from typing import Any, ClassVar
 
@@ -52,7 +53,29 @@ def _center(z: torch.Tensor) -> torch.Tensor:
     return torch.where(small & (c < 0), -CENTER_MIN, torch.where(small, CENTER_MIN, c))
 
 
-class DeepSVDD(DeepDetector):
+class _CentreDistanceScoring(DeepDetector):
+    """Scores squared distance to the centre plus reconstruction, weighted as M-SVDD's delta.
+
+    The reconstruction weight is w x mean distance / mean reconstruction over the training windows.
+    """
+
+    @abc.abstractmethod
+    def _parts(self, audio: torch.Tensor, imu: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(squared distance to the centre, reconstruction loss) per window."""
+
+    def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
+        parts = [self._parts(a, i) for a, i in self.chunks(audio, imu)]
+        dist2 = torch.cat([p[0] for p in parts])
+        rec = torch.cat([p[1] for p in parts])
+        weight = self.config.w * float(dist2.mean()) / max(float(rec.mean()), 1e-12)
+        self.extra["rec_weight"] = torch.tensor([weight], dtype=torch.float64)
+
+    def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
+        dist2, rec = self._parts(audio, imu)
+        return dist2.double() + float(self.extra["rec_weight"][0]) * rec.double()
+
+
+class DeepSVDD(_CentreDistanceScoring):
     """One-class Deep SVDD with the reconstruction branch, on M-SVDD's network."""
 
     kind = "dsvdd"
@@ -81,17 +104,6 @@ class DeepSVDD(DeepDetector):
     def _parts(self, audio: torch.Tensor, imu: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         z, rec = self._embed(self.module, audio, imu)
         return ((z - self.extra["center"]) ** 2).sum(dim=1), rec
-
-    def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
-        parts = [self._parts(a, i) for a, i in self.chunks(audio, imu)]
-        dist2 = torch.cat([p[0] for p in parts])
-        rec = torch.cat([p[1] for p in parts])
-        weight = self.config.w * float(dist2.mean()) / max(float(rec.mean()), 1e-12)
-        self.extra["rec_weight"] = torch.tensor([weight], dtype=torch.float64)
-
-    def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
-        dist2, rec = self._parts(audio, imu)
-        return dist2.double() + float(self.extra["rec_weight"][0]) * rec.double()
 
 
 class DeepAutoencoder(DeepDetector):
@@ -153,7 +165,7 @@ class _VAEModule(nn.Module):
         return z, rec, kl
 
 
-class VAESVDD(DeepDetector):
+class VAESVDD(_CentreDistanceScoring):
     """A token-level VAE with a Deep SVDD loss on the fused embedding."""
 
     kind = "vae-svdd"
@@ -176,17 +188,6 @@ class VAESVDD(DeepDetector):
     def _parts(self, audio: torch.Tensor, imu: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         z, rec, _ = self.module(audio, imu)
         return ((z - self.extra["center"]) ** 2).sum(dim=1), rec
-
-    def after_training(self, audio: torch.Tensor, imu: torch.Tensor) -> None:
-        parts = [self._parts(a, i) for a, i in self.chunks(audio, imu)]
-        dist2 = torch.cat([p[0] for p in parts])
-        rec = torch.cat([p[1] for p in parts])
-        weight = self.config.w * float(dist2.mean()) / max(float(rec.mean()), 1e-12)
-        self.extra["rec_weight"] = torch.tensor([weight], dtype=torch.float64)
-
-    def batch_scores(self, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
-        dist2, rec = self._parts(audio, imu)
-        return dist2.double() + float(self.extra["rec_weight"][0]) * rec.double()
 
 
 class _DAGMMModule(nn.Module):

@@ -67,7 +67,7 @@ def test_paper_preset_has_the_papers_size() -> None:
     assert len(nominal) == 21
     assert sum(s.split in ("train", "val") for s in nominal) == 15
     hours = sum(s.duration_s for s in nominal) / 3600
-    assert 1.9 < hours < 2.1
+    assert hours == pytest.approx(2.0, abs=0.1)
 
 
 def test_unknown_preset_names_the_allowed_ones() -> None:

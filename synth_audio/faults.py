@@ -5,6 +5,15 @@
 - bearing: an impulse train at defect_order x rotation frequency with slip jitter, exciting resonance_hz.
 - loose_wheel: rattle whose rate peaks once per revolution as the hub wobbles.
 - motor_degradation: gear-wear sidebands around the mesh tone at +- the wheel and shaft rotation rates.
+
+Calibration criterion (physical; measured on stems, never on a detector's score): on a straight cruise
+at 0.8 m/s on tile, the fault stem's power in its characteristic band (`fault_band`, below the
+detectors' 2205 Hz Nyquist) over the healthy robot's drive sound (motor + rolling stems of the same
+drive without the fault) in that band is L(s) = +6 dB + 30 log10(s): clearly audible at severity 1
+(+6 dB), level with the drive at 0.6 (-0.7 dB), hard to hear at 0.3 (-9.7 dB). The law is
+`severity_gain` (amplitude s^1.5); `KIND_GAIN_DB` sets the +6 dB per kind. Other speeds follow each
+model's own speed law. Measured by `tests/synth_audio/fault_calibration_kit.py` and held (within
++-1.5 dB at severity 1, +-2 dB at 0.3) by `tests/synth_audio/test_fault_calibration.py`.
 """
 
 from __future__ import annotations
@@ -17,12 +26,43 @@ from synth_audio.dsp import damped_modes, overlap_add, resonate, white
 from synth_audio.rolling import poisson_events
 
 FAULT_SCALE = 3.0
-"""Fault sound level at severity 1 and the nominal speed, relative to the nominal rolling level."""
+"""Common fault sound scale at severity 1 and the nominal speed (each kind trimmed by KIND_GAIN_DB)."""
+IMBALANCE_DEPTH = 0.8
+"""Depth of the imbalance's amplitude modulation of its wheel's sound at severity 1 and the nominal speed."""
+KIND_GAIN_DB: dict[str, float] = {
+    "flat_spot": 10.3,
+    "imbalance": -22.4,
+    "bearing": 9.2,
+    "loose_wheel": 6.8,
+    "motor_degradation": 2.5,
+}
+"""Per-kind trim of the fault level, dB, calibrated to the criterion in the module docstring."""
 _EDGE_S = 0.02
+DETECTOR_NYQUIST_HZ = 2205.0
+"""Nyquist frequency of the detectors' audio (44.1 kHz decimated by 10): calibration bands stay below it."""
+
+
+def fault_band(fault: FaultRecord, rotation_hz: float, sample_rate: int) -> tuple[float, float]:
+    """Characteristic band of a fault's sound, Hz, where its calibrated level is measured.
+
+    One octave centred on the structural resonance the fault excites (`fault.resonance_hz`), or +-20 %
+    around the gear-mesh tone (`defect_order` x `rotation_hz`) for motor degradation; clipped to
+    [20 Hz, DETECTOR_NYQUIST_HZ] and to the sample rate's Nyquist.
+    """
+    top = min(DETECTOR_NYQUIST_HZ, 0.5 * sample_rate)
+    if fault.kind == "motor_degradation":
+        centre, half = float(fault.defect_order) * abs(rotation_hz), 1.2
+    else:
+        centre, half = float(fault.resonance_hz), float(np.sqrt(2.0))
+    lo = float(np.clip(centre / half, 20.0, top))
+    hi = float(np.clip(centre * half, 20.0, top))
+    if hi <= lo:
+        raise ValueError(f"fault band of {fault.kind!r} is empty: centre {centre:.1f} Hz, limit {top:.0f} Hz")
+    return lo, hi
 
 
 def severity_gain(severity: float) -> float:
-    """Amplitude factor of a fault: severity^1.5 (0.1 -> -30 dB, hard to hear under the rolling noise)."""
+    """Amplitude factor of a fault: severity^1.5, i.e. 30 log10(severity) dB (0.3: -15.7 dB, 0.1: -30 dB)."""
     return float(np.clip(severity, 0.0, 1.0)) ** 1.5
 
 
@@ -73,7 +113,9 @@ def fault_sound(
     """Mono sound of one fault at its wheel, float32 (n,). `wheel_sound` is that wheel's nominal sound."""
     sr, n, w = drive.sample_rate, drive.n, fault.wheel
     gate = window(drive, fault)
-    level = FAULT_SCALE * severity_gain(fault.severity)
+    if fault.kind not in KIND_GAIN_DB:
+        raise ValueError(f"unknown fault kind {fault.kind!r}; allowed: {', '.join(KIND_GAIN_DB)}")
+    level = FAULT_SCALE * severity_gain(fault.severity) * 10.0 ** (KIND_GAIN_DB[fault.kind] / 20.0)
     if level == 0.0 or not np.any(gate > 0):
         return np.zeros(n, dtype=np.float32)
     speed = np.minimum(drive.speed_mps[w] / NOMINAL_SPEED, 3.0)
@@ -100,25 +142,28 @@ def fault_sound(
         mod = np.cos(np.float32(2 * np.pi) * phase + np.float32(rng.uniform(0, 6.28)))
         noise = resonate(white(rng, n), fault.resonance_hz, max(fault.damping_ratio, 0.01), sr)
         noise *= np.float32(0.3)
-        out = wheel_sound * mod * drive.ramp(0.8 * gate * np.minimum(speed, 1.5))
-        out += noise * (1.0 + mod) * drive.ramp(gate * speed**2)
-        return out * np.float32(severity_gain(fault.severity) * FAULT_SCALE)
+        # The wheel's own sound, modulated with depth IMBALANCE_DEPTH x severity gain (not over-modulated),
+        # plus the structural buzz, trimmed to the calibration.
+        depth = IMBALANCE_DEPTH * severity_gain(fault.severity)
+        out = wheel_sound * mod * drive.ramp(depth * gate * np.minimum(speed, 1.5))
+        out += noise * (1.0 + mod) * drive.ramp(level * gate * speed**2)
+        return out
     if kind == "loose_wheel":
         wobble = 1.0 + np.cos(2 * np.pi * (drive.cycles[w][:-1] - rng.uniform()))
         expected = 35.0 * np.diff(drive.block_time) * speed[:-1] * wobble * gate[:-1]
         pos, amp = poisson_events(rng, expected, n)
         length = int(0.05 * sr)
         kernel = damped_modes(
-            np.array([1100.0, 2300.0, 3900.0, 160.0]), np.array([0.04, 0.03, 0.02, 0.03]),
-            np.array([0.8, 1.0, 0.6, 0.7]), rng.uniform(0, 6.28, 4), sr, length,
+            np.array([float(fault.resonance_hz), 1100.0, 2300.0, 3900.0, 160.0]),
+            np.array([0.04, 0.04, 0.03, 0.02, 0.03]), np.array([1.0, 0.8, 1.0, 0.6, 0.7]),
+            rng.uniform(0, 6.28, 5), sr, length,
         )  # fmt: skip
         return overlap_add(n, pos, amp * level * 0.5, kernel)
-    if kind == "motor_degradation":
-        robot = drive.robot
-        order = float(fault.defect_order) if fault.defect_order > 0 else robot.pinion_teeth * robot.gear_ratio
-        mesh = np.sin(np.float32(2 * np.pi) * drive.phase(w, order))
-        wheel_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, 1.0))
-        shaft_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, robot.gear_ratio))
-        mesh *= np.float32(0.6) + np.float32(0.5) * wheel_mod + np.float32(0.3) * shaft_mod
-        return mesh * drive.ramp(level * 0.5 * gate * speed**0.8)
-    raise ValueError(f"unknown fault kind {kind!r}")
+    # motor_degradation
+    robot = drive.robot
+    order = float(fault.defect_order) if fault.defect_order > 0 else robot.pinion_teeth * robot.gear_ratio
+    mesh = np.sin(np.float32(2 * np.pi) * drive.phase(w, order))
+    wheel_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, 1.0))
+    shaft_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, robot.gear_ratio))
+    mesh *= np.float32(0.6) + np.float32(0.5) * wheel_mod + np.float32(0.3) * shaft_mod
+    return mesh * drive.ramp(level * 0.5 * gate * speed**0.8)

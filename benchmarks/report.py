@@ -187,7 +187,7 @@ def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -
         "",
         naive_verdict(per_method),
         "",
-        "## AUC (%) by anomaly sub-kind",
+        "## AUC (%) by anomaly sub-kind (comparison methods; every method's are in results.json)",
         "",
         *_sub_kind_table(per_method),
         "",
@@ -204,8 +204,9 @@ def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -
 
 
 def _sub_kind_table(per_method: Mapping[str, Sequence[MethodMetrics]]) -> list[str]:
+    """Rows per anomaly sub-kind, columns for the comparison and naive methods (ablations stay in JSON)."""
     subs = sorted({s for runs in per_method.values() for r in runs for s in r.auc_by_sub_kind})
-    names = list(per_method)
+    names = [m for name, _ in (*COMPARISON, *NAIVE) for m in _resolve(name, per_method)]
     lines = ["| Sub-kind | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for sub in subs:
         cells = [

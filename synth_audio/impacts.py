@@ -112,6 +112,8 @@ def struck_response(
     length = modal_length(t60, sample_rate)
     out = damped_modes(freqs, t60, amps, phases, sample_rate, length)
     click_len = max(int(4 * tau * sample_rate), 4)
+    if click_len > out.size:  # a soft, slow contact outlasts the modal ring
+        out = np.pad(out, (0, click_len - out.size))
     env = np.exp(-np.arange(click_len) / (tau * sample_rate)).astype(np.float32)
     click = one_pole_lowpass(white(rng, click_len) * env, 0.6 / tau, sample_rate)
     out[:click_len] += np.float32(material.click) * click

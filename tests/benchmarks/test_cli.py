@@ -79,3 +79,15 @@ def test_unknown_method_is_refused(
         main(["train", "--data", str(tiny_dataset), "--method", "magic", "--out", str(tmp_path / "m")]) == 2
     )
     assert "method 'magic' is unknown" in capsys.readouterr().err
+
+
+def test_a_library_bug_keeps_its_traceback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    import benchmarks.dataset as ds
+
+    def broken(*args: object, **kwargs: object) -> None:
+        np.zeros(3)[:2] += np.ones(3)  # a broadcast error: a bug, not bad input
+
+    monkeypatch.setattr(ds, "generate", broken)
+    monkeypatch.setattr("benchmarks.commands.generate.generate", broken)
+    with pytest.raises(ValueError, match="could not be broadcast"):
+        main(["generate", "--preset", "tiny", "--out", str(tmp_path / "d")])

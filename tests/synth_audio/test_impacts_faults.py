@@ -72,3 +72,13 @@ def test_fault_sound_scales_with_severity(kind: str, quiet: AudioConfig) -> None
     assert quiet_level == 0.0
     assert 0.0 < mid < loud
     assert 20 * np.log10(loud / mid) > 6.0
+
+
+def test_a_soft_slow_contact_longer_than_the_modal_ring_renders() -> None:
+    # A pedestrian met at walking pace: the contact click (4 tau) outlasts the soft body's short ring.
+    from synth_audio.impacts import MATERIALS, contact_time, impact
+
+    tau = contact_time(MATERIALS["soft_body"], 0.01)
+    sound = impact("soft_body", 5.0, 0.01, 44100, np.random.default_rng(0))
+    assert sound.size >= int(4 * tau * 44100)
+    assert np.all(np.isfinite(sound)) and float(np.abs(sound).max()) > 0

@@ -228,8 +228,30 @@ def window_starts(duration_s: float, hop_s: float) -> np.ndarray:
     return np.arange(max(n, 0)) * hop_s
 
 
-def _window_rows(dataset: Path, preset: Preset, specs: list[EpisodeSpec]) -> list[WindowRow]:
+@dataclass(frozen=True)
+class DroppedWindow:
+    """A window of a nominal episode left out because something anomalous happened in it."""
+
+    episode: str
+    """Episode folder name."""
+    start_s: float
+    """Window start, s."""
+    kind: str
+    """What happened (`collision`: e.g. a walking pedestrian met the robot)."""
+    sub_kind: str
+    """Obstacle or fault kind."""
+
+
+def _window_rows(
+    dataset: Path, preset: Preset, specs: list[EpisodeSpec]
+) -> tuple[list[WindowRow], list[DroppedWindow]]:
+    """The window table, and the nominal-episode windows left out because they are not normal.
+
+    Nominal routes avoid obstacles, but a pedestrian keeps walking and can still meet the robot; such a
+    window is labelled (collision) by the simulator and must not enter nominal training or testing.
+    """
     rows: list[WindowRow] = []
+    dropped: list[DroppedWindow] = []
     for spec in specs:
         with np.load(dataset / spec.episode_id / "imu.npz", allow_pickle=False) as imu:
             label, sub_kind, wheel = imu["label"], imu["sub_kind"], imu["label_wheel"]
@@ -239,9 +261,8 @@ def _window_rows(dataset: Path, preset: Preset, specs: list[EpisodeSpec]) -> lis
             if lab is None:
                 continue
             if spec.category == "nominal" and lab[0] != NORMAL:
-                raise DatasetError(
-                    f"{spec.episode_id}: nominal episode has a {LABELS[lab[0]]} window at {start}s"
-                )
+                dropped.append(DroppedWindow(spec.episode_id, float(start), LABELS[lab[0]], lab[1]))
+                continue
             if spec.category != "nominal" and lab[0] == NORMAL:
                 continue  # anomaly episodes contribute their anomalous windows only
             label_id, sub_kind_name, wheel_id = lab
@@ -249,7 +270,7 @@ def _window_rows(dataset: Path, preset: Preset, specs: list[EpisodeSpec]) -> lis
                 WindowRow(len(rows), spec.episode_id, float(start), spec.split, label_id, LABELS[label_id],
                           sub_kind_name, wheel_id, spec.unit_id)
             )  # fmt: skip
-    return rows
+    return rows, dropped
 
 
 def sha256_file(path: Path) -> str:
@@ -285,7 +306,12 @@ def generate(
     try:
         for _ in _build_all(specs, tmp, workers or os.cpu_count() or 1, progress):
             pass
-        rows = _window_rows(tmp, preset, specs)
+        rows, dropped = _window_rows(tmp, preset, specs)
+        if dropped and progress:
+            print(
+                f"left out {len(dropped)} window(s) of nominal episodes with an anomaly in them "
+                "(listed in manifest.json)"
+            )
         _write_windows_csv(tmp / "windows.csv", rows)
         manifest = {
             "format_version": DATASET_FORMAT_VERSION,
@@ -297,6 +323,7 @@ def generate(
                 "sha256": sha256_file(tmp / "windows.csv"),
                 "count": len(rows),
             },
+            "dropped_nominal_windows": [asdict(d) for d in dropped],
             "episodes": [
                 {
                     **asdict(spec),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -84,3 +86,19 @@ def test_method_groups_expand_to_registered_methods() -> None:
     assert expand_methods(["table1", "msvdd"], registered) == list(TABLE1_METHODS)
     assert expand_methods(["ablations"], registered)[0] == "msvdd"
     assert expand_methods(["all"], registered) == registered
+
+
+def test_anomalous_windows_of_nominal_episodes_are_left_out_and_listed(tmp_path: Path) -> None:
+    from benchmarks.dataset import _window_rows
+
+    preset = get_preset("tiny")
+    spec = next(s for s in plan_episodes(preset, 0) if s.category == "nominal")
+    label, sub, wheel = _timeline(6.0)
+    label[int(4.5 * RATE) : int(4.6 * RATE)] = COLLISION  # a pedestrian walks into the robot
+    sub[int(4.5 * RATE) : int(4.6 * RATE)] = sub_kind_index("pedestrian")
+    (tmp_path / spec.episode_id).mkdir()
+    np.savez(tmp_path / spec.episode_id / "imu.npz", label=label, sub_kind=sub, label_wheel=wheel)
+    rows, dropped = _window_rows(tmp_path, preset, [spec])
+    assert all(r.kind == "normal" for r in rows)
+    assert {d.start_s for d in dropped} == {3.0, 3.5, 4.0} and {d.sub_kind for d in dropped} == {"pedestrian"}
+    assert len(rows) + len(dropped) == window_starts(6.0, preset.train_hop_s).size

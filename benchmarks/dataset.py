@@ -237,7 +237,7 @@ class DroppedWindow:
     start_s: float
     """Window start, s."""
     kind: str
-    """What happened (`collision`: e.g. a walking pedestrian met the robot)."""
+    """What happened (`collision` or `mechanical`)."""
     sub_kind: str
     """Obstacle or fault kind."""
 
@@ -247,8 +247,9 @@ def _window_rows(
 ) -> tuple[list[WindowRow], list[DroppedWindow]]:
     """The window table, and the nominal-episode windows left out because they are not normal.
 
-    Nominal routes avoid obstacles, but a pedestrian keeps walking and can still meet the robot; such a
-    window is labelled (collision) by the simulator and must not enter nominal training or testing.
+    Nominal routes avoid obstacles, but a long route can still graze one (the paper preset, seed 0, has a
+    curb and a wall touched in the last seconds of two 343 s sequences); the simulator labels such a window a
+    collision, and it must not enter nominal training or testing.
     """
     rows: list[WindowRow] = []
     dropped: list[DroppedWindow] = []

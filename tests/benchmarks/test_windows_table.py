@@ -94,7 +94,7 @@ def test_anomalous_windows_of_nominal_episodes_are_left_out_and_listed(tmp_path:
     preset = get_preset("tiny")
     spec = next(s for s in plan_episodes(preset, 0) if s.category == "nominal")
     label, sub, wheel = _timeline(6.0)
-    label[int(4.5 * RATE) : int(4.6 * RATE)] = COLLISION  # a pedestrian walks into the robot
+    label[int(4.5 * RATE) : int(4.6 * RATE)] = COLLISION  # the route grazed an obstacle
     sub[int(4.5 * RATE) : int(4.6 * RATE)] = sub_kind_index("pedestrian")
     (tmp_path / spec.episode_id).mkdir()
     np.savez(tmp_path / spec.episode_id / "imu.npz", label=label, sub_kind=sub, label_wheel=wheel)

@@ -335,22 +335,13 @@ def _add_transient(
     quat = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
     name = f"transient_{i}"
     rgba = [0.3, 0.3, 0.3, 1]
-    if kind == "seam":
+    if kind in ("seam", "threshold"):  # a low strip across the path; a threshold is wider
+        half_width = 0.01 if kind == "seam" else 0.04
         parent.add(
             "geom",
             name=name,
             type="box",
-            size=[length / 2, 0.01, h / 2],
-            pos=[x, y, h / 2],
-            quat=quat,
-            rgba=rgba,
-        )
-    elif kind == "threshold":
-        parent.add(
-            "geom",
-            name=name,
-            type="box",
-            size=[length / 2, 0.04, h / 2],
+            size=[length / 2, half_width, h / 2],
             pos=[x, y, h / 2],
             quat=quat,
             rgba=rgba,

@@ -12,25 +12,11 @@ from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEve
 
 
 def _robot() -> RobotInfo:
-    return RobotInfo(
-        model="skid4",
-        unit_id=0,
-        mass=12.0,
-        wheel_names=("front_left", "front_right", "back_left", "back_right"),
-        wheel_radius=np.full(4, 0.06),
-        wheel_pos_body=np.array(
-            [[0.15, 0.17, 0.0], [0.15, -0.17, 0.0], [-0.15, 0.17, 0.0], [-0.15, -0.17, 0.0]]
-        ),
-        mic_pos_body=np.array([[0.2, 0.1, 0.12], [0.2, -0.1, 0.12]]),
-        imu_pos_body=np.zeros(3),
-        gear_ratio=30.0,
-        pinion_teeth=12,
-        motor_pole_pairs=2,
-        pwm_hz=16000.0,
-        tread_blocks=24,
-        track=0.34,
-        wheelbase=0.3,
-    )
+    """The default robot unit as the simulator builds it (real geometry, compiled mass)."""
+    import sim
+    from sim.world import build_world
+
+    return build_world(sim.scenario_presets()["nominal_indoor"](0)).robot.info
 
 
 def workload(duration: float, environment: str = "indoor") -> Trace:

@@ -56,20 +56,30 @@ MATERIALS: dict[str, Material] = {
 ROBOT_BODY = Material((230, 640, 1450, 2900), (0.1, 0.08, 0.05, 0.04), (0.5, 1.0, 0.7, 0.35), 0.002, 0.0, 0.5)
 """The robot's own chassis, excited by every hit (collisions and benign bumps alike)."""
 
-IMPACT_SCALE = 1.9
-"""Modal amplitude per unit of `impulse_law`, relative to the nominal per-wheel rolling level."""
-IMPULSE_KNEE = 2.0
-"""Impulse (N s) above which loudness grows logarithmically (see `impulse_law`)."""
+IMPACT_SCALE = 0.28
+"""Modal amplitude per N s of impact impulse, relative to the nominal per-wheel rolling level.
+
+One scale for collisions and benign transients alike: the robot's chassis and the struck surface ring
+in proportion to the momentum the hit exchanges (linear acoustics), so a 20 kg robot meeting a wall at
+0.7 m/s (14 N s) sounds about 17 dB louder than a wheel climbing a cable at 1 m/s (about 2 N s, see
+`transients.strike_impulse`).
+"""
+ELASTIC_LIMIT = 2.0
+"""Most momentum a hit can exchange, in units of reduced mass x approach speed (a fully elastic bounce)."""
 
 
-def impulse_law(impulse: float) -> float:
-    """Excitation amplitude for an event impulse: log(1 + J / knee), monotonic and compressive.
+def impact_impulse(
+    impulse: float, normal_speed: float, robot_mass: float, obstacle_mass: float | None
+) -> float:
+    """The impulsive part of a contact's impulse, N s: what makes the bang.
 
-    MuJoCo's event impulse includes the quasi-static load carried during a soft contact (tens of N s for
-    a wheel rolling over a cable), so loudness cannot grow linearly with it; a logarithmic law keeps a
-    1 N s tap and a 100 N s ram about 20 dB apart.
+    MuJoCo's contact impulse integrates the whole contact; if the robot keeps pushing after the hit, the
+    push adds impulse without adding impact. A hit exchanges at most `ELASTIC_LIMIT` x mu x v, with mu the
+    reduced mass of the robot and the obstacle (the robot's mass for fixed obstacles, `obstacle_mass`
+    None) and v the approach speed; the rest of the impulse is pushing, which scrapes.
     """
-    return float(np.log1p(max(float(impulse), 0.0) / IMPULSE_KNEE))
+    mu = robot_mass if obstacle_mass is None else robot_mass * obstacle_mass / (robot_mass + obstacle_mass)
+    return float(min(max(float(impulse), 0.0), ELASTIC_LIMIT * mu * abs(float(normal_speed))))
 
 
 SCRAPE_SCALE = 0.35
@@ -119,14 +129,17 @@ def struck_response(
     out[:click_len] += np.float32(material.click) * click
     rise = max(min(int(0.5 * tau * sample_rate), int(0.001 * sample_rate)), 1)
     out[:rise] *= np.sin(0.5 * np.pi * (np.arange(rise) + 1) / rise).astype(np.float32) ** 2
-    out *= np.float32(scale * impulse_law(impulse))
+    out *= np.float32(scale * max(float(impulse), 0.0))
     return out
 
 
 def impact(
     material_name: str, impulse: float, normal_speed: float, sample_rate: int, rng: np.random.Generator
 ) -> np.ndarray:
-    """Mono sound of one collision at the contact point, float32, starting at the contact instant."""
+    """Mono sound of one collision at the contact point, float32, starting at the contact instant.
+
+    `impulse` is the impulsive part of the contact (`impact_impulse`), N s; the amplitude is linear in it.
+    """
     material = MATERIALS[material_name]
     return struck_response(material, impulse, normal_speed, sample_rate, rng, IMPACT_SCALE * material.gain)
 

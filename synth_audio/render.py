@@ -15,18 +15,19 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sim.scenario import OBSTACLE_MASS
 from sim.trace import RobotInfo, Trace
 from synth_audio import ambience as amb
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
 from synth_audio.drive import Drive, build_drive, reference_torque
 from synth_audio.dsp import add_at, noise_loop, rms, white
 from synth_audio.faults import fault_sound
-from synth_audio.impacts import impact, scrape
+from synth_audio.impacts import impact, impact_impulse, scrape
 from synth_audio.motor import motor_wheel, pwm_carrier
 from synth_audio.reverb import DECIMATION, Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
 from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
-from synth_audio.transients import transient
+from synth_audio.transients import strike_impulse, transient
 from synth_audio.validate import check_seed, check_trace
 
 _STREAMS = ("motor", "rolling", "transients", "impacts", "faults", "ambience", "room", "mic_noise", "noise")
@@ -96,11 +97,14 @@ def _robot_buses(
     buses["transients"] = bus()
     tr_rng = _rng(seed, "transients")
     tr = trace.transients
+    robot = trace.robot
+    corner_mass = float(robot.mass) / len(robot.wheel_names)
     for i in range(len(tr.kind)):
         wheel = int(tr.wheel[i])
         t = float(tr.time[i])
         speed = float(np.interp(t, drive.block_time, drive.speed_mps[wheel]))
-        sound = transient(tr.kind[i], float(tr.impulse[i]), speed, sr, tr_rng)
+        strike = strike_impulse(tr.kind[i], speed, float(robot.wheel_radius[wheel]), corner_mass)
+        sound = transient(tr.kind[i], strike, speed, sr, tr_rng)
         add_at(buses["transients"][wheel], round(t * sr), sound)
     return buses
 
@@ -123,6 +127,7 @@ def _impacts(trace: Trace, sr: int, seed: int, speed_of_sound: float) -> np.ndar
         return out
     rng = _rng(seed, "impacts")
     axes_body = mic_axes(np.asarray(trace.robot.mic_pos_body))
+    mass = float(trace.robot.mass)
     for i in range(len(c.material)):
         t = float(c.time[i])
         k = int(np.clip(np.searchsorted(trace.time, t), 0, len(trace.time) - 1))
@@ -130,7 +135,10 @@ def _impacts(trace: Trace, sr: int, seed: int, speed_of_sound: float) -> np.ndar
         delays, gains = point_gains(c.position[i], trace.mic_pos[k], axes_body @ rot.T, sr, speed_of_sound)
         start = math.floor(t * sr)
         offset = t * sr - start
-        sound = impact(c.material[i], float(c.impulse[i]), float(c.normal_speed[i]), sr, rng)
+        hit = impact_impulse(
+            float(c.impulse[i]), float(c.normal_speed[i]), mass, OBSTACLE_MASS.get(c.obstacle_kind[i])
+        )
+        sound = impact(c.material[i], hit, float(c.normal_speed[i]), sr, rng)
         normal = np.asarray(c.normal[i], dtype=np.float64)
         vel = np.asarray(trace.base_linvel[k], dtype=np.float64)
         slide = float(np.linalg.norm(vel - np.dot(vel, normal) * normal))

@@ -6,11 +6,14 @@ import itertools
 
 import numpy as np
 import pytest
-from audio_trace_kit import contacts, make_trace
+from audio_trace_kit import contacts, make_trace, transients
 from signal_oracles import envelope_spectrum
 
+from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import FaultRecord
 from synth_audio import AudioConfig, render
+from synth_audio.impacts import impact_impulse
+from synth_audio.transients import strike_impulse
 
 SR = 44100
 CONTACT = (0.25, 0.08, 0.12)
@@ -82,3 +85,46 @@ def test_a_soft_slow_contact_longer_than_the_modal_ring_renders() -> None:
     sound = impact("soft_body", 5.0, 0.01, 44100, np.random.default_rng(0))
     assert sound.size >= int(4 * tau * 44100)
     assert np.all(np.isfinite(sound)) and float(np.abs(sound).max()) > 0
+
+
+@pytest.mark.parametrize("kind", ["seam", "threshold", "cable", "debris"])
+def test_strike_impulse_is_the_corner_mass_turning_over_the_step(kind: str) -> None:
+    # A wheel of radius r meets a step of height h at angle acos(1 - h/r): its centre's velocity turns by
+    # that angle, so the corner of the robot gains dv_z = v sin(theta).
+    h, r, v, m = TRANSIENT_HEIGHT[kind], 0.08, 1.2, 5.0
+    expected = m * v * np.sqrt(1.0 - (1.0 - h / r) ** 2)
+    assert strike_impulse(kind, v, r, m) == pytest.approx(expected, rel=1e-12)
+    assert strike_impulse(kind, -v, r, m) == pytest.approx(expected, rel=1e-12)
+    assert strike_impulse(kind, 0.0, r, m) == 0.0
+
+
+def test_kerb_ramp_strike_is_the_drop_off_its_far_edge() -> None:
+    h = TRANSIENT_HEIGHT["kerb_ramp"]
+    assert strike_impulse("kerb_ramp", 0.5, 0.08, 5.0) == pytest.approx(5.0 * np.sqrt(2 * 9.81 * h))
+
+
+def test_impact_impulse_keeps_a_bounce_and_drops_the_push() -> None:
+    # A 20 kg robot at 0.7 m/s into a wall: a bounce exchanges up to 2 m v; a long push adds no bang.
+    assert impact_impulse(20.0, 0.7, 20.0, None) == pytest.approx(20.0)
+    assert impact_impulse(300.0, 0.7, 20.0, None) == pytest.approx(2 * 20.0 * 0.7)
+    # A free 4 kg box: the reduced mass 20 * 4 / 24 limits what the hit can exchange.
+    assert impact_impulse(300.0, 0.7, 20.0, 4.0) == pytest.approx(2 * (20 * 4 / 24) * 0.7)
+
+
+def test_a_wall_hit_is_louder_than_a_cable_crossed_faster(quiet: AudioConfig) -> None:
+    # Same robot, same microphones: a 0.7 m/s wall hit against a wheel crossing a cable at 1.2 m/s.
+    radius = 0.06
+    omega = 1.2 / radius
+    corner = 12.0 / 4
+    cable = make_trace(
+        1.0, omega, transient_events=transients([0.3], [0], [7.0], ["cable"])
+    )  # MuJoCo's 7 N s holds the carried weight: it must not set the loudness
+    hit = impact_impulse(14.0, 0.7, 12.0, None)
+    wall = make_trace(
+        1.0, omega, contact_events=contacts([0.3], [hit], [CONTACT], ["plaster"], normal_speed=0.7)
+    )
+    e_cable = float(np.sum(render(cable, quiet, seed=1).stems["transients"].astype(np.float64) ** 2))
+    e_wall = float(np.sum(render(wall, quiet, seed=1).stems["impacts"].astype(np.float64) ** 2))
+    strike = strike_impulse("cable", 1.2, radius, corner)
+    assert strike < 0.2 * hit
+    assert 10 * np.log10(e_wall / e_cable) > 10.0

@@ -34,7 +34,8 @@ def test_contact_on_the_left_arrives_first_and_louder_on_the_left(y: float, quie
 
 
 def test_transient_at_the_left_wheel_is_louder_on_the_left(quiet: AudioConfig) -> None:
-    trace = make_trace(0.6, 0.0, transient_events=transients([0.1], [2], [2.0], ["threshold"]))
+    # The wheels must roll: a wheel at rest meets a feature without striking it (see strike_impulse).
+    trace = make_trace(0.6, 10.0, transient_events=transients([0.1], [2], [2.0], ["threshold"]))
     stem = render(trace, quiet, seed=0).stems["transients"]
     assert rms(stem[:, 0]) > rms(stem[:, 1])
     assert _lag_right_after_left(stem) > 0

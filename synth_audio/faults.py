@@ -9,9 +9,11 @@
 Calibration criterion (physical; measured on stems, never on a detector's score): on a straight cruise
 at 0.8 m/s on tile, the fault stem's power in its characteristic band (`fault_band`, below the
 detectors' 2205 Hz Nyquist) over the healthy robot's drive sound (motor + rolling stems of the same
-drive without the fault) in that band is L(s) = +6 dB + 30 log10(s): clearly audible at severity 1
-(+6 dB), level with the drive at 0.6 (-0.7 dB), hard to hear at 0.3 (-9.7 dB). The law is
-`severity_gain` (amplitude s^1.5); `KIND_GAIN_DB` sets the +6 dB per kind. Other speeds follow each
+drive without the fault) in that band is L(s) = +16 dB + 30 log10(s): loud at severity 1 (+16 dB, a
+fault that gets a robot taken out of service), clearly audible at 0.6 (+9.3 dB), level with the drive
+at 0.3 (+0.3 dB: the band's power doubles, hard to hear under the environment), and under it below
+that (the `hard` preset's 0.05..0.35). The law is `severity_gain` (amplitude s^1.5); `KIND_GAIN_DB`
+sets the +16 dB per kind. Other speeds follow each
 model's own speed law. Measured by `tests/synth_audio/fault_calibration_kit.py` and held (within
 +-1.5 dB at severity 1, +-2 dB at 0.3) by `tests/synth_audio/test_fault_calibration.py`.
 """
@@ -30,13 +32,15 @@ FAULT_SCALE = 3.0
 IMBALANCE_DEPTH = 0.8
 """Depth of the imbalance's amplitude modulation of its wheel's sound at severity 1 and the nominal speed."""
 KIND_GAIN_DB: dict[str, float] = {
-    "flat_spot": 10.3,
-    "imbalance": -22.4,
-    "bearing": 9.2,
-    "loose_wheel": 6.8,
-    "motor_degradation": 2.5,
+    "flat_spot": 20.3,
+    "imbalance": -12.4,
+    "bearing": 19.2,
+    "loose_wheel": 16.8,
+    "motor_degradation": 12.5,
 }
 """Per-kind trim of the fault level, dB, calibrated to the criterion in the module docstring."""
+REFERENCE_LEVEL_DB = 16.0
+"""L(1): the fault's in-band level over the healthy drive sound at severity 1, dB (the criterion above)."""
 _EDGE_S = 0.02
 DETECTOR_NYQUIST_HZ = 2205.0
 """Nyquist frequency of the detectors' audio (44.1 kHz decimated by 10): calibration bands stay below it."""

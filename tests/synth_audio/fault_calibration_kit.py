@@ -5,8 +5,8 @@ cruise at `CRUISE` m/s on tile, the fault on the front-left wheel from 1 s, meas
 
 - Audio: L(s), the fault stem's power in the fault's band (`synth_audio.faults.fault_band`, below the
   detectors' 2205 Hz Nyquist) over the power of the healthy robot's drive sound (motor + rolling stems
-  of the same drive without the fault) in that band, is +6 dB + 30 log10(s): +6 dB at severity 1,
-  -0.7 dB at 0.6, -9.7 dB at 0.3.
+  of the same drive without the fault) in that band, is +16 dB + 30 log10(s): +16 dB at severity 1,
+  +9.3 dB at 0.6, +0.3 dB at 0.3.
 - IMU: at severity 1 the z-velocity amplitude at the fault's frequency (rotation, bearing defect or
   motor shaft frequency, at the faulty wheel's own speed) is at least 4x that of the healthy drive; the
   loose wheel's rattle (random impulses, no line) raises the z-velocity RMS at least 4x. Imbalance is

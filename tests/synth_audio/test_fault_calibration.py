@@ -11,18 +11,19 @@ from fault_calibration_kit import audio_level_db, trace
 
 from sim.trace import FaultRecord
 from sim.vocab import FAULT_KINDS
-from synth_audio.faults import DETECTOR_NYQUIST_HZ, fault_band, severity_gain
+from synth_audio.faults import DETECTOR_NYQUIST_HZ, REFERENCE_LEVEL_DB, fault_band, severity_gain
 
 
 @pytest.mark.parametrize("kind", FAULT_KINDS)
 def test_severity_one_is_clearly_audible_over_the_drive_sound_in_its_band(kind: str) -> None:
-    assert audio_level_db(kind, 1.0) == pytest.approx(6.0, abs=1.5)
+    assert REFERENCE_LEVEL_DB == 16.0
+    assert audio_level_db(kind, 1.0) == pytest.approx(REFERENCE_LEVEL_DB, abs=1.5)
 
 
 @pytest.mark.parametrize("kind", FAULT_KINDS)
-def test_severity_0_3_sits_about_10_db_under_the_drive_sound(kind: str) -> None:
-    expected = 6.0 + 20.0 * np.log10(severity_gain(0.3))
-    assert expected == pytest.approx(-9.7, abs=0.05)
+def test_severity_0_3_sits_level_with_the_drive_sound(kind: str) -> None:
+    expected = REFERENCE_LEVEL_DB + 20.0 * np.log10(severity_gain(0.3))
+    assert expected == pytest.approx(0.3, abs=0.05)
     assert audio_level_db(kind, 0.3) == pytest.approx(expected, abs=2.0)
     assert audio_level_db(kind, 0.3) < audio_level_db(kind, 0.6) < audio_level_db(kind, 1.0)
 

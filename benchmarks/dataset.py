@@ -36,6 +36,7 @@ from benchmarks.episode import (
 from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
+from sim import vocab
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
 DATASET_FORMAT_VERSION = 1
@@ -92,6 +93,8 @@ class EpisodeSpec:
     """Fault severity range."""
     transient_density: float
     """Benign transient density multiplier."""
+    surface: str | None = None
+    """Floor surface (None: drawn by the scenario sampler)."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +125,17 @@ def _episode_seed(dataset_seed: int, index: int) -> int:
     return int(np.random.SeedSequence([dataset_seed, index]).generate_state(1, dtype=np.uint32)[0])
 
 
+def nominal_floors() -> list[tuple[str, str]]:
+    """(environment, surface) pairs nominal sequences take in turn; every surface is in the first six."""
+    indoor = list(vocab.INDOOR_SURFACES)
+    outdoor_only = [f for f in vocab.OUTDOOR_SURFACES if f not in indoor]
+    pairs: list[tuple[str, str]] = []
+    for i in range(max(len(indoor), len(outdoor_only))):
+        pairs += [("indoor", indoor[i])] if i < len(indoor) else []
+        pairs += [("outdoor", outdoor_only[i])] if i < len(outdoor_only) else []
+    return pairs + [("outdoor", f) for f in vocab.OUTDOOR_SURFACES if f in indoor]
+
+
 def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
     """Every episode of a dataset, deterministically from the preset and seed."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 7919]))
@@ -145,15 +159,20 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
                 wheel=kw.get("wheel"),  # type: ignore[arg-type]
                 severity=preset.severity,
                 transient_density=preset.transient_density,
+                surface=kw.get("surface"),  # type: ignore[arg-type]
             )
         )
 
-    environments = ("indoor", "outdoor")
+    # Nominal sequences take the floors in turn, so training and testing both cover every surface
+    # (one surface per sequence: drawn at random, six test sequences left test normals on three).
+    floors = nominal_floors()
     for i in range(preset.nominal_train):
         split = "val" if i >= preset.nominal_train - preset.nominal_val else "train"
-        add("nominal", split, preset.train_units, preset.nominal_duration_s, environment=environments[i % 2])
+        env, floor = floors[i % len(floors)]
+        add("nominal", split, preset.train_units, preset.nominal_duration_s, environment=env, surface=floor)
     for i in range(preset.nominal_test):
-        add("nominal", "test", preset.test_units, preset.nominal_duration_s, environment=environments[i % 2])
+        env, floor = floors[i % len(floors)]
+        add("nominal", "test", preset.test_units, preset.nominal_duration_s, environment=env, surface=floor)
     for kind in preset.obstacle_kinds:
         for _ in range(preset.collisions_per_kind):
             add("collision", "test", preset.test_units, preset.collision_duration_s, obstacle_kind=kind)
@@ -179,6 +198,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         severity=spec.severity,
         unit_id=spec.unit_id,
         transient_density=spec.transient_density,
+        surface=spec.surface,
     )
     trace = sim.simulate(scenario)
     audio = synth_audio.render(trace, synth_audio.AudioConfig(snr_db=spec.snr_db), seed=spec.seed)

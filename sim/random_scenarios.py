@@ -129,6 +129,7 @@ def random_scenario(
     unit_id: int | None = None,
     transient_density: float = 1.0,
     robot_model: str = "skid4",
+    surface: str | None = None,
 ) -> Scenario:
     """A valid randomised scenario of a category; every draw depends only on the arguments.
 
@@ -146,6 +147,8 @@ def random_scenario(
         unit_id: robot unit (random 0..7 when None).
         transient_density: transients per 8 s of driving (0 = none).
         robot_model: skid4 or diff2.
+        surface: floor surface (random among the environment's when None); must belong to the
+            environment (`sim.vocab.INDOOR_SURFACES`, `OUTDOOR_SURFACES`).
     """
     _check_args(
         category,
@@ -158,6 +161,15 @@ def random_scenario(
         transient_density,
         robot_model,
     )
+    if surface is not None and environment is None:
+        raise ScenarioError(f"surface = {surface!r} needs an environment; allowed: indoor, outdoor")
+    if surface is not None:
+        allowed = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
+        if surface not in allowed:
+            raise ScenarioError(
+                f"surface = {surface!r} is invalid for environment {environment!r}; "
+                f"allowed: {', '.join(allowed)}"
+            )
     if not isinstance(seed, int) or seed < 0:
         raise ScenarioError(f"seed = {seed!r} is invalid; allowed: an integer >= 0")
     rng = np.random.default_rng([seed, CATEGORIES.index(category), 0x5CE])
@@ -166,7 +178,8 @@ def random_scenario(
     if environment is None:
         environment = "outdoor" if obstacle_kind == "curb" else str(rng.choice(vocab.ENVIRONMENTS))
     surfaces = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
-    surface = str(rng.choice(surfaces))
+    drawn = str(rng.choice(surfaces))  # drawn even when given, so the other draws stay the same
+    surface = drawn if surface is None else surface
     if environment == "indoor":
         arena = (float(rng.uniform(5.0, 7.5)), float(rng.uniform(4.0, 5.5)))
     else:

@@ -9,7 +9,7 @@ import pytest
 
 from benchmarks.dataset import label_windows, plan_episodes, window_starts
 from benchmarks.presets import get_preset, preset_names
-from sim.vocab import COLLISION, MECHANICAL, NORMAL, sub_kind_index
+from sim.vocab import COLLISION, MECHANICAL, NORMAL, SURFACES, sub_kind_index
 
 RATE = 200
 
@@ -61,6 +61,14 @@ def test_plans_are_deterministic_and_cover_every_kind(name: str) -> None:
     assert sum(s.split == "val" for s in plan) == preset.nominal_val
     assert {s.unit_id for s in train} <= set(preset.train_units)
     assert {s.unit_id for s in plan if s.split == "test"} <= set(preset.test_units)
+
+
+@pytest.mark.parametrize("name", ["paper", "hard"])
+def test_nominal_training_and_test_sequences_each_cover_every_surface(name: str) -> None:
+    plan = plan_episodes(get_preset(name), 0)
+    for splits in (("train",), ("test",)):
+        floors = {s.surface for s in plan if s.category == "nominal" and s.split in splits}
+        assert floors == set(SURFACES), splits
 
 
 def test_paper_preset_has_the_papers_size() -> None:

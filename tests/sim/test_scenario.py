@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -102,6 +103,14 @@ def test_random_scenario_depends_only_on_its_arguments() -> None:
     assert 0.0 < a.faults[0].onset < a.duration
 
 
+def test_a_given_surface_changes_the_floor_and_nothing_else() -> None:
+    drawn = random_scenario(5, "nominal", duration=60.0, environment="outdoor")
+    other = next(f for f in ("asphalt", "gravel") if f != drawn.surface)
+    given = random_scenario(5, "nominal", duration=60.0, environment="outdoor", surface=other)
+    assert given.surface == other
+    assert dataclasses.replace(given, surface=drawn.surface) == drawn
+
+
 @pytest.mark.parametrize("category", ["nominal", "collision", "fault"])
 @pytest.mark.parametrize("duration", [20.0, 340.0])
 def test_random_scenarios_are_valid_for_short_and_long_episodes(category: str, duration: float) -> None:
@@ -123,6 +132,8 @@ def test_random_scenarios_are_valid_for_short_and_long_episodes(category: str, d
         ({"severity": (0.5, 1.2)}, r"severity = \(0.5, 1.2\)"),
         ({"environment": "moon"}, "environment = 'moon'"),
         ({"duration": -1.0}, "duration = -1.0"),
+        ({"environment": "indoor", "surface": "grass"}, "surface = 'grass'.*indoor.*tile, carpet, concrete"),
+        ({"surface": "tile"}, "surface = 'tile' needs an environment"),
     ],
 )
 def test_random_scenario_refuses_bad_arguments(kwargs: dict, message: str) -> None:  # type: ignore[type-arg]

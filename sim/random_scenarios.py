@@ -495,6 +495,44 @@ def _ram_legs(
     ]
 
 
+MAX_TRANSIENTS = 120
+"""Most benign transients laid in one scenario."""
+DEBRIS_SPAN = 0.4
+"""Width across a leg within which a debris piece counts as met, m (about the robot's track)."""
+
+
+def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
+    """Whether segments ab and cd cross (2-D, proper crossing)."""
+
+    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> float:
+        return float((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
+
+    return side(a, b, c) * side(a, b, d) < 0 and side(c, d, a) * side(c, d, b) < 0
+
+
+def _crossings(transient: Transient, legs: list[tuple[np.ndarray, np.ndarray]]) -> int:
+    """How many of the route's legs run over a transient (a strip, or debris across the track)."""
+    half = (DEBRIS_SPAN if transient.kind == "debris" else transient.length) / 2
+    d = np.array([math.cos(transient.yaw), math.sin(transient.yaw)]) * half
+    centre = np.array([transient.x, transient.y])
+    return sum(_segments_cross(centre - d, centre + d, a, b) for a, b in legs)
+
+
+def _driven_legs(
+    start: tuple[float, float, float], waypoints: list[Waypoint], duration: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The route's legs (ram legs left out) that start within the episode, by the planner's timing."""
+    legs: list[tuple[np.ndarray, np.ndarray]] = []
+    here, t = np.array(start[:2]), 0.0
+    for w in waypoints:
+        there = np.array([w.x, w.y])
+        if t < duration - 1.0 and w.ram < 0:
+            legs.append((here, there))
+        t += float(np.linalg.norm(there - here)) / w.speed + w.dwell + 1.5
+        here = there
+    return legs
+
+
 def _transients(
     rng: np.random.Generator,
     environment: str,
@@ -504,22 +542,27 @@ def _transients(
     duration: float,
     density: float,
 ) -> tuple[Transient, ...]:
-    """Benign transients laid across the route's legs (so the wheels roll over them)."""
+    """Benign transients laid across the route's legs (so the wheels roll over them).
+
+    The route meets about `density` transients per 8 s of driving, whatever the episode's length: strips
+    are laid until the route's crossings of them (every leg that runs over a strip counts, including legs
+    that cross strips laid on other legs) reach `density * duration / 8`. Counting strips instead let a
+    long route, crisscrossing a small arena, meet several times more bumps per second than a short one.
+    """
     if density <= 0:
         return ()
     hx, hy = arena
-    pts = np.array([(start[0], start[1])] + [(w.x, w.y) for w in waypoints if w.ram < 0])
-    legs = [(pts[i], pts[i + 1]) for i in range(len(pts) - 1)]
+    legs = _driven_legs(start, waypoints, duration)
     lengths = np.array([np.linalg.norm(b - a) for a, b in legs])
     usable = lengths > 1.0
     if not usable.any():
         return ()
     weights = np.where(usable, lengths, 0.0)
     weights = weights / weights.sum()
-    count = max(2, round(density * duration / 8.0))
-    count = min(count, 120)
+    target = max(2, round(density * duration / 8.0))
     out: list[Transient] = []
-    for _ in range(count):
+    met = 0
+    while (met < target or len(out) < 2) and len(out) < MAX_TRANSIENTS:
         i = int(rng.choice(len(legs), p=weights))
         a, b = legs[i]
         u = float(rng.uniform(0.2, 0.8))
@@ -533,7 +576,9 @@ def _transients(
         room = np.array([hx - 0.05, hy - 0.05]) - np.abs(p)
         scale = float(np.min(np.where(ends > 0, room / np.maximum(ends, 1e-9), np.inf)))
         length = max(0.3, length * min(1.0, scale))
-        out.append(Transient(kind, float(p[0]), float(p[1]), float(yaw), length))
+        transient = Transient(kind, float(p[0]), float(p[1]), float(yaw), length)
+        out.append(transient)
+        met += max(1, _crossings(transient, legs))
     return tuple(out)
 
 

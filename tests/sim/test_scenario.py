@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from sim_kit import straight
 
-from sim import ScenarioError, random_scenario, scenario_presets, vocab
+from sim import ScenarioError, random_scenario, scenario_presets, simulate, vocab
 from sim.robot import asset_path
 from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
 
@@ -157,3 +157,17 @@ def test_presets_cover_every_obstacle_and_fault_kind() -> None:
 def test_route_refuses_ram_at_missing_obstacle() -> None:
     with pytest.raises(ScenarioError, match=r"route.waypoints\[0\].ram = 2"):
         straight().replace(route=Route(waypoints=(Waypoint(1.0, 0.0, ram=2),)))
+
+
+def test_benign_bumps_per_second_do_not_grow_with_the_episode_length() -> None:
+    # A long route crisscrosses its arena; laying strips per second of episode made a 343 s nominal
+    # sequence meet ~3x more bumps per second than a 37 s fault episode. The wheels' actual encounters:
+    def rate(category: str, duration: float) -> float:
+        events = [
+            len(simulate(random_scenario(s, category, duration=duration)).transients.time) for s in range(3)
+        ]
+        return sum(events) / (3 * duration)
+
+    long_nominal, short_fault = rate("nominal", 343.0), rate("fault", 37.0)
+    assert 0.5 < long_nominal / short_fault < 2.0, (long_nominal, short_fault)
+    assert 0.25 < long_nominal < 1.0  # four wheels over one strip every ~8 s: ~0.5 events/s

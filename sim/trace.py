@@ -95,7 +95,8 @@ class TransientEvents:
     wheel: np.ndarray
     """(n,) index of the wheel that hit it."""
     impulse: np.ndarray
-    """(n,) vertical impulse on the wheel, N s."""
+    """(n,) vertical impulse on the wheel over the contact, N s (it includes the weight the wheel carries
+    meanwhile; the audio's loudness comes from `synth_audio.transients.strike_impulse` instead)."""
     kind: tuple[str, ...]
     """(n,) transient kind (see `sim.vocab.TRANSIENT_KINDS`)."""
 

@@ -13,9 +13,9 @@ drive without the fault) in that band is L(s) = +16 dB + 30 log10(s): loud at se
 fault that gets a robot taken out of service), clearly audible at 0.6 (+9.3 dB), level with the drive
 at 0.3 (+0.3 dB: the band's power doubles, hard to hear under the environment), and under it below
 that (the `hard` preset's 0.05..0.35). The law is `severity_gain` (amplitude s^1.5); `KIND_GAIN_DB`
-sets the +16 dB per kind. Other speeds follow each
-model's own speed law. Measured by `tests/synth_audio/fault_calibration_kit.py` and held (within
-+-1.5 dB at severity 1, +-2 dB at 0.3) by `tests/synth_audio/test_fault_calibration.py`.
+sets the +16 dB per kind. Other speeds follow each model's own speed law. Measured by
+`tests/synth_audio/fault_calibration_kit.py` and held (within +-1.5 dB at severity 1, +-2 dB at 0.3) by
+`tests/synth_audio/test_fault_calibration.py`.
 """
 
 from __future__ import annotations

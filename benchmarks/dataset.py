@@ -9,6 +9,7 @@ folder beside the target and renamed into place, so a dataset folder is either c
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
 import json
 import multiprocessing
@@ -185,6 +186,11 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
     return specs
 
 
+def episode_audio_config(spec: EpisodeSpec, muted: tuple[str, ...] = ()) -> synth_audio.AudioConfig:
+    """How an episode's audio is rendered (`muted`: source groups left out, for the audit)."""
+    return synth_audio.AudioConfig(snr_db=spec.snr_db, muted=muted)
+
+
 def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
     """Simulate, render and write one episode folder (runs in a worker process)."""
     scenario = sim.random_scenario(
@@ -201,7 +207,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         surface=spec.surface,
     )
     trace = sim.simulate(scenario)
-    audio = synth_audio.render(trace, synth_audio.AudioConfig(snr_db=spec.snr_db), seed=spec.seed)
+    audio = synth_audio.render(trace, episode_audio_config(spec), seed=spec.seed)
     meta = EpisodeMeta(
         episode_id=spec.episode_id,
         category=spec.category,
@@ -410,6 +416,17 @@ class Dataset:
             k: tuple(v) if isinstance(v, list) else v for k, v in self.manifest["preset"].items()
         }
         return Preset(**fields)
+
+    def episode_specs(self) -> dict[str, EpisodeSpec]:
+        """Every episode's plan, by episode id, as `generate` recorded it in the manifest."""
+        names = {f.name for f in dataclasses.fields(EpisodeSpec)}
+        out: dict[str, EpisodeSpec] = {}
+        for entry in self.manifest["episodes"]:
+            kw: dict[str, Any] = {
+                k: tuple(v) if isinstance(v, list) else v for k, v in entry.items() if k in names
+            }
+            out[entry["episode_id"]] = EpisodeSpec(**kw)
+        return out
 
     def rows(self, split: str) -> list[WindowRow]:
         """Window rows of one split."""

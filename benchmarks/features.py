@@ -191,6 +191,24 @@ def imu_features(imu: np.ndarray, config: FeatureConfig = FeatureConfig()) -> np
     return np.concatenate([stats, band_power], axis=1)
 
 
+IMU6_STAT_NAMES: tuple[str, ...] = ("mean", "std", "max_abs_dev", "diff_std", "kurtosis")
+"""Statistics of each of the six IMU axes (acc xyz, gyro xyz), in feature order (axis-major)."""
+
+
+def imu6_features(imu6: np.ndarray) -> np.ndarray:
+    """(N, 6 x 5) float64: per axis of (N, T, 6) accelerometer/gyro windows, `IMU6_STAT_NAMES`."""
+    x = np.asarray(imu6, dtype=np.float64)
+    if x.ndim != 3 or x.shape[2] != 6 or x.shape[1] < 8:
+        raise ValueError(f"imu6 shape {x.shape}; expected (N, T >= 8, 6)")
+    cols = []
+    for axis in range(6):
+        a = x[:, :, axis]
+        mean, std, _, kurt = _moments(a)
+        _, d_std, _, _ = _moments(np.diff(a, axis=1))
+        cols += [mean, std, np.abs(a - mean[:, None]).max(axis=1), d_std, kurt]
+    return np.stack(cols, axis=1)
+
+
 @dataclass(frozen=True)
 class WindowFeatures:
     """Handcrafted features of a window batch, one row per window."""

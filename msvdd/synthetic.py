@@ -48,4 +48,13 @@ def toy_windows(n_normal: int, n_anomalous: int, seed: int) -> tuple[Windows, np
             audio[idx] = 0.8 * audio[idx] + 0.9 * clicks * rng.standard_normal(AUDIO_LEN)
             imu[idx] += 0.03 * np.sin(2 * np.pi * rate * t_i)
     stereo = np.stack([audio, 0.8 * audio + 0.01 * rng.standard_normal((n, AUDIO_LEN))], axis=-1)
-    return Windows(audio=stereo.astype(np.float32), imu=imu.astype(np.float32)), labels
+    # Six IMU axes from their own generator (the draws above stay as they were): gravity on acc z, small
+    # noise everywhere, and the z-velocity's anomalies felt as vertical acceleration.
+    rng6 = np.random.default_rng([seed, 6])
+    imu6 = 0.03 * rng6.standard_normal((n, IMU_LEN, 6))
+    imu6[:, :, 2] += 9.81
+    imu6[:, :, 2] += np.gradient(imu, 1.0 / IMU_RATE, axis=1)
+    windows = Windows(
+        audio=stereo.astype(np.float32), imu=imu.astype(np.float32), imu6=imu6.astype(np.float32)
+    )
+    return windows, labels

@@ -28,6 +28,10 @@ ROBOT_STEMS: tuple[str, ...] = ("motor", "rolling", "transients", "impacts", "fa
 """Stems that are the robot's own sound (the `snr_db` signal); the rest is environment and microphone."""
 
 
+MUTABLE_SOURCES: tuple[str, ...] = ("transients", "impacts", "faults")
+"""Source groups `AudioConfig.muted` can leave out (the audit deletes the anomaly's own sound this way)."""
+
+
 class AudioError(ValueError):
     """A trace or config the audio stage cannot render; the message names the problem."""
 
@@ -72,6 +76,8 @@ class AudioConfig:
     """Speed of sound, m/s."""
     limiter: bool = True
     """Soft-limit the mix above -6 dBFS so that it never exceeds full scale (monotonic, stems untouched)."""
+    muted: tuple[str, ...] = ()
+    """Source groups left out entirely (`MUTABLE_SOURCES`); every other source renders as without it."""
 
     def validate(self) -> None:
         """Raise AudioError naming the first field that cannot be honoured."""
@@ -116,6 +122,9 @@ class AudioConfig:
             raise AudioError("door_rate_hz and bird_rate_hz must be >= 0")
         if not 200.0 <= self.speed_of_sound <= 2000.0:
             raise AudioError(f"speed_of_sound {self.speed_of_sound} out of range; allowed: 200..2000 m/s")
+        if not isinstance(self.muted, tuple) or any(m not in MUTABLE_SOURCES for m in self.muted):
+            allowed = ", ".join(MUTABLE_SOURCES)
+            raise AudioError(f"muted {self.muted!r} is invalid; allowed: a tuple of {allowed}")
 
 
 @dataclass(frozen=True)

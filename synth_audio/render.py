@@ -55,12 +55,17 @@ def _body_sources(robot: RobotInfo) -> np.ndarray:
 
 
 def _robot_buses(
-    drive: Drive, surface: str, seed: int, trace: Trace | None, merged: bool = False
+    drive: Drive,
+    surface: str,
+    seed: int,
+    trace: Trace | None,
+    merged: bool = False,
+    muted: tuple[str, ...] = (),
 ) -> dict[str, np.ndarray]:
     """Mono buses (W + 1, n) per robot source group; the last row is the chassis. Events need `trace`.
 
     With `merged`, every group accumulates into one bus array (same samples, no per-group copies); all
-    dictionary entries are then the same array.
+    dictionary entries are then the same array. Groups in `muted` stay silent.
     """
     robot = drive.robot
     w, n, sr = drive.n_wheels, drive.n, drive.sample_rate
@@ -92,14 +97,14 @@ def _robot_buses(
         else buses["motor"][f.wheel] + buses["rolling"][f.wheel]
         for f in trace.faults
     }
-    for fault in trace.faults:
+    for fault in () if "faults" in muted else trace.faults:
         buses["faults"][fault.wheel] += fault_sound(drive, fault, nominal[fault.wheel], fault_rng)
     buses["transients"] = bus()
     tr_rng = _rng(seed, "transients")
     tr = trace.transients
     robot = trace.robot
     corner_mass = float(robot.mass) / len(robot.wheel_names)
-    for i in range(len(tr.kind)):
+    for i in range(0 if "transients" in muted else len(tr.kind)):
         wheel = int(tr.wheel[i])
         t = float(tr.time[i])
         speed = float(np.interp(t, drive.block_time, drive.speed_mps[wheel]))
@@ -235,7 +240,7 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
         "faults": config.gain_faults_db,
     }
     merged = not config.stems and all(g == 0.0 for g in gains_db.values())
-    buses = _robot_buses(drive, trace.surface, seed, trace, merged)
+    buses = _robot_buses(drive, trace.surface, seed, trace, merged, config.muted)
     delays, gains = point_gains(
         _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
     )
@@ -254,7 +259,7 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             total += bus * np.float32(10.0 ** (gains_db[name] / 20.0))
         stems["robot"] = _spatialize(total, delays, gains)
         stems["robot"] *= np.float32(scale)
-    if len(trace.contacts.material) or config.stems:
+    if "impacts" not in config.muted and (len(trace.contacts.material) or config.stems):
         impacts = _impacts(trace, sr, seed, config.speed_of_sound)
         impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
         stems["impacts"] = impacts

@@ -7,6 +7,7 @@ save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("
 
 from benchmarks.methods import deep as _deep
 from benchmarks.methods import deep_if as _deep_if
+from benchmarks.methods import gaussian as _gaussian
 from benchmarks.methods import msvdd_family as _msvdd
 from benchmarks.methods import naive as _naive
 from benchmarks.methods import shallow as _shallow
@@ -28,6 +29,7 @@ _naive.register_methods()
 _shallow.register_methods()
 _deep.register_methods()
 _deep_if.register_methods()
+_gaussian.register_methods()
 
 __all__ = [
     "FAMILIES",

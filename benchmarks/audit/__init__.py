@@ -1,0 +1,10 @@
+"""The benchmark's self-check for shortcuts: `run_audit(dataset)` and the report it writes.
+
+`msvdd-bench audit DATASET` runs it; see `benchmarks.audit.core` for the probes and
+`benchmarks.audit.report` for their limits.
+"""
+
+from benchmarks.audit.core import run_audit
+from benchmarks.audit.report import FAIL, PASS, REPORT, AuditResult, ProbeRow, markdown, write
+
+__all__ = ["FAIL", "PASS", "REPORT", "AuditResult", "ProbeRow", "markdown", "run_audit", "write"]

@@ -1,0 +1,431 @@
+"""`run_audit(dataset)`: every shortcut probe of a dataset, measured on its test windows.
+
+The probes (limits in `benchmarks.audit.report`):
+
+- behaviour: what the robot does, from the simulator's ground-truth motion (fraction of the window
+  reversing, fraction turning in place, peak deceleration, peak yaw rate), scored as they are;
+- naive: window audio RMS, peak level, crest factor and spectral-flux peak at 44.1 kHz, and the IMU
+  acceleration peak, overall, per kind and per sub-kind;
+- deleted: the test anomaly episodes rendered again from their stored traces without their own sound
+  (impacts, scrapes and fault sounds muted; same seed, same physics), scored by the audio-only reference
+  detector; if it still finds them, it hears something other than the anomaly;
+- leak: windows of anomaly episodes at least 1 s away from any anomalous sample, against nominal test
+  windows, scored by the reference detector;
+- clipping: share of windows of each class within 1 dB of full scale;
+- reference: the reference detector (`gaussian-early`) with its episode-cluster bootstrap 95 % interval and
+  its spread over the nominal test sequences;
+- ambience: repetition of the environment's noise beds (autocorrelation beyond 1 s), on nominal test
+  episodes rendered again with stems;
+- context: the arena's area as a score (anomaly episodes must be drawn like nominal ones).
+
+Scalars carry no direction, so they are judged two-sided (max(AUC, 1 - AUC)); detectors are judged by
+their AUC as it is (higher = flagged as more anomalous).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+import synth_audio
+from benchmarks.audit import signals
+from benchmarks.audit.report import (
+    BEHAVIOUR_LIMIT,
+    CLIPPING_LIMIT,
+    CONTEXT_LIMIT,
+    DELETED_LIMIT,
+    LEAK_LIMIT,
+    NAIVE_OVERALL_LIMIT,
+    NAIVE_SUB_KIND_LIMIT,
+    REFERENCE_HALF_WIDTH_LIMIT,
+    REPETITION_LIMIT,
+    AuditResult,
+    ProbeRow,
+)
+from benchmarks.dataset import Dataset, WindowRow, episode_audio_config, open_dataset
+from benchmarks.episode import read_episode
+from benchmarks.methods.gaussian import GaussianReference
+from benchmarks.metrics import roc_auc
+from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
+from msvdd import preprocess
+from msvdd.contract import IMU_RATE, WINDOW_S, Windows
+from sim.trace import Trace
+from sim.vocab import NORMAL
+
+CONTEXT_MARGIN_S = 1.0
+"""A context window stays this far from any anomalous sample of its episode, s."""
+CONTEXT_HOP_S = 1.0
+"""Hop between context windows, s."""
+AMBIENCE_EPISODES = 3
+"""Nominal test episodes rendered again with stems for the ambience repetition probe."""
+MUTED_ANOMALY_SOURCES: tuple[str, ...] = ("impacts", "faults")
+"""What the deleted-sound probe mutes: collision impacts and scrapes, and wheel-fault sounds."""
+
+BEHAVIOUR_PROBES = ("reversing", "turning_in_place", "yaw_rate_peak")
+"""Behaviour scalars with a limit on collisions (peak deceleration is the impact itself: reported)."""
+NAIVE_AUDIO = ("rms", "peak", "crest", "flux")
+"""Naive audio scalars with limits (the IMU acceleration peak is reported)."""
+
+
+@dataclass
+class _Collected:
+    """Per-window data gathered in one pass over the test episodes."""
+
+    rows: list[WindowRow] = field(default_factory=list)
+    scalars: dict[str, list[float]] = field(default_factory=dict)
+    area: list[float] = field(default_factory=list)
+    audio: list[np.ndarray] = field(default_factory=list)
+    imu: list[np.ndarray] = field(default_factory=list)
+    imu6: list[np.ndarray] = field(default_factory=list)
+    context: list[Windows] = field(default_factory=list)
+    context_episode: list[str] = field(default_factory=list)
+    context_category: list[str] = field(default_factory=list)
+
+    def add(self, name: str, values: np.ndarray) -> None:
+        self.scalars.setdefault(name, []).extend(float(v) for v in values)
+
+    def windows(self) -> Windows:
+        return Windows(
+            audio=np.concatenate(self.audio), imu=np.concatenate(self.imu), imu6=np.concatenate(self.imu6)
+        )
+
+
+def _kinematics(trace_path: Path, starts: np.ndarray) -> dict[str, np.ndarray]:
+    with np.load(trace_path, allow_pickle=False) as t:
+        quat, linvel, angvel = t["base_quat"], t["base_linvel"], t["base_angvel"]
+        dt = float(t["physics_dt"])
+    speed = signals.forward_speed(quat, linvel)
+    # The first physics sample is at dt: pad one sample so index = time x rate.
+    speed = np.r_[speed[:1], speed]
+    yaw = np.r_[angvel[:1, 2], angvel[:, 2]]
+    return signals.behaviour(speed, yaw, 1.0 / dt, starts)
+
+
+def context_starts(
+    label: np.ndarray, hop_s: float = CONTEXT_HOP_S, margin_s: float = CONTEXT_MARGIN_S
+) -> np.ndarray:
+    """Starts of 2 s windows whose span, widened by `margin_s` each side, holds only normal samples."""
+    n = len(label)
+    duration = n / IMU_RATE
+    anomalous = np.asarray(label) != NORMAL
+    bad = np.r_[0, np.cumsum(anomalous)]
+    out = []
+    start = 0.0
+    while start + WINDOW_S <= duration + 1e-9:
+        i0 = max(0, round((start - margin_s) * IMU_RATE))
+        i1 = min(n, round((start + WINDOW_S + margin_s) * IMU_RATE))
+        if bad[i1] - bad[i0] == 0:
+            out.append(start)
+        start += hop_s
+    return np.array(out)
+
+
+def _collect(data: Dataset, progress: bool) -> _Collected:
+    specs = data.episode_specs()
+    by_episode: dict[str, list[WindowRow]] = {}
+    for row in data.rows("test"):
+        by_episode.setdefault(row.episode, []).append(row)
+    got = _Collected()
+    for episode_id, rows in tqdm(by_episode.items(), desc="audit: test episodes", disable=not progress):
+        episode = read_episode(data.path / episode_id)
+        starts = np.array([r.start_s for r in rows])
+        got.rows += rows
+        for name, values in signals.audio_levels(episode.audio, episode.audio_rate, starts).items():
+            got.add(name, values)
+        got.add("acc_peak", signals.acceleration_peak(episode.imu6[:, :3], IMU_RATE, starts))
+        for name, values in _kinematics(data.path / episode_id / "trace.npz", starts).items():
+            got.add(name, values)
+        hx, hy = episode.scenario["arena"]
+        got.area += [4.0 * hx * hy] * len(rows)
+        audio4410 = preprocess.decimate_audio(episode.audio)
+        w = preprocess.frame_windows(audio4410, episode.imu_vel_z, starts, imu6=episode.imu6)
+        assert w.imu6 is not None
+        got.audio.append(w.audio)
+        got.imu.append(w.imu)
+        got.imu6.append(w.imu6)
+        category = specs[episode_id].category
+        if category != "nominal":
+            ctx = context_starts(episode.label)
+            if ctx.size:
+                got.context.append(
+                    preprocess.frame_windows(audio4410, episode.imu_vel_z, ctx, imu6=episode.imu6)
+                )
+                got.context_episode += [episode_id] * ctx.size
+                got.context_category += [category] * ctx.size
+    return got
+
+
+def _deleted_windows(data: Dataset, rows: list[WindowRow], progress: bool) -> tuple[Windows, list[WindowRow]]:
+    """Anomalous test windows cut from audio rendered again without the anomaly's own sound."""
+    specs = data.episode_specs()
+    by_episode: dict[str, list[WindowRow]] = {}
+    for row in rows:
+        if row.kind != "normal":
+            by_episode.setdefault(row.episode, []).append(row)
+    parts: list[Windows] = []
+    kept: list[WindowRow] = []
+    for episode_id, ep_rows in tqdm(by_episode.items(), desc="audit: re-render muted", disable=not progress):
+        spec = specs[episode_id]
+        trace = Trace.load(data.path / episode_id / "trace.npz")
+        audio = synth_audio.render(trace, episode_audio_config(spec, MUTED_ANOMALY_SOURCES), seed=spec.seed)
+        starts = np.array([r.start_s for r in ep_rows])
+        parts.append(
+            preprocess.frame_windows(
+                preprocess.decimate_audio(audio.samples),
+                trace.imu_vel_z,
+                starts,
+                imu6=np.concatenate([trace.imu_acc, trace.imu_gyro], axis=1),
+            )
+        )
+        kept += ep_rows
+    return _concat(parts), kept
+
+
+def _concat(parts: list[Windows]) -> Windows:
+    imu6 = [p.imu6 for p in parts]
+    return Windows(
+        audio=np.concatenate([p.audio for p in parts]),
+        imu=np.concatenate([p.imu for p in parts]),
+        imu6=None if any(x is None for x in imu6) else np.concatenate(imu6),  # type: ignore[arg-type]
+    )
+
+
+def _ambience_repetition(data: Dataset, episodes: list[str]) -> list[tuple[str, float]]:
+    specs = data.episode_specs()
+    out = []
+    for episode_id in episodes:
+        spec = specs[episode_id]
+        trace = Trace.load(data.path / episode_id / "trace.npz")
+        config = episode_audio_config(spec)
+        audio = synth_audio.render(
+            trace, synth_audio.AudioConfig(**{**config.__dict__, "stems": True}), seed=spec.seed
+        )
+        bed = audio.stems["ambience"]
+        if bed.shape[0] > 4 * audio.sample_rate:  # lags of 1 s up to half the signal
+            out.append((episode_id, signals.repetition(bed, audio.sample_rate)))
+    return out
+
+
+def _auc(scores: np.ndarray, normal: np.ndarray, positive: np.ndarray) -> float:
+    keep = normal | positive
+    if not normal.any() or not positive.any():
+        return math.nan
+    return roc_auc(positive[keep].astype(int), scores[keep])
+
+
+def _two_sided(a: float) -> float:
+    return max(a, 1.0 - a) if math.isfinite(a) else math.nan
+
+
+def _targets(kinds: np.ndarray, subs: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """(name, mask) of overall, each kind and each sub-kind present among anomalous windows."""
+    anomalous = kinds != "normal"
+    out = [("overall", anomalous)]
+    out += [(k, kinds == k) for k in ("collision", "mechanical") if np.any(kinds == k)]
+    out += [(f"sub:{s}", anomalous & (subs == s)) for s in sorted(set(subs[anomalous]))]
+    return out
+
+
+def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
+    """Every probe on a dataset's test windows (the dataset is verified first)."""
+    started = time.perf_counter()
+    data = open_dataset(Path(dataset))
+    got = _collect(data, progress)
+    kinds = np.array([r.kind for r in got.rows])
+    subs = np.array([r.sub_kind for r in got.rows])
+    episodes = np.array([r.episode for r in got.rows])
+    normal = kinds == "normal"
+    if not normal.any() or normal.all():
+        raise ValueError(f"{data.path}: the test split needs nominal and anomalous windows to audit")
+    rows: list[ProbeRow] = []
+    targets = _targets(kinds, subs)
+
+    def scalar_rows(group: str, name: str, limit_for: Callable[[str], float | None]) -> None:
+        values = np.asarray(got.scalars[name])
+        for target, mask in targets:
+            raw = _auc(values, normal, mask)
+            rows.append(
+                ProbeRow(
+                    group,
+                    name,
+                    target,
+                    _two_sided(raw),
+                    limit_for(target),
+                    "auc2",
+                    f"AUC {raw:.3f}; {int(mask.sum())} vs {int(normal.sum())} windows",
+                )
+            )
+
+    # Behaviour: limits on collisions only.
+    def behaviour_limit(target: str) -> float | None:
+        return BEHAVIOUR_LIMIT if target == "collision" else None
+
+    for name in BEHAVIOUR_PROBES:
+        scalar_rows("behaviour", name, behaviour_limit)
+    scalar_rows("behaviour", "peak_deceleration", lambda t: None)
+
+    # Naive scalars.
+    def naive_limit(target: str) -> float | None:
+        if target == "overall":
+            return NAIVE_OVERALL_LIMIT
+        return NAIVE_SUB_KIND_LIMIT if target.startswith("sub:") else None
+
+    for name in NAIVE_AUDIO:
+        scalar_rows("naive", name, naive_limit)
+    scalar_rows("naive", "acc_peak", lambda t: None)
+    # Clipping.
+    clip = signals.clipped(np.asarray(got.scalars["peak"]))
+    for label in ("normal", "collision", "mechanical"):
+        mask = kinds == label
+        if mask.any():
+            rows.append(
+                ProbeRow(
+                    "clipping",
+                    "peak >= -1 dBFS",
+                    label,
+                    float(clip[mask].mean()),
+                    CLIPPING_LIMIT,
+                    "share",
+                    f"{int(clip[mask].sum())} of {int(mask.sum())} windows",
+                )
+            )
+    for sub in sorted(set(subs[~normal])):
+        mask = subs == sub
+        rows.append(
+            ProbeRow(
+                "clipping",
+                "peak >= -1 dBFS",
+                f"sub:{sub}",
+                float(clip[mask].mean()),
+                None,
+                "share",
+                f"{int(clip[mask].sum())} of {int(mask.sum())} windows",
+            )
+        )
+    # Context: arena size.
+    area = np.asarray(got.area)
+    raw = _auc(area, normal, ~normal)
+    rows.append(
+        ProbeRow(
+            "context",
+            "arena area",
+            "overall",
+            _two_sided(raw),
+            CONTEXT_LIMIT,
+            "auc2",
+            f"AUC {raw:.3f}; median m2 normal {np.median(area[normal]):.0f}, "
+            f"anomalous {np.median(area[~normal]):.0f}",
+        )
+    )
+
+    # Reference detectors, fitted on the nominal training windows.
+    train, _ = data.load_windows("train")
+    test = got.windows()
+    early = GaussianReference("early").fit(train)
+    audio_only = GaussianReference("audio").fit(train)
+    del train
+    s_early = early.score(test)
+    s_audio = audio_only.score(test)
+    interval = auc_interval(s_early, ~normal, episodes)
+    spread = auc_per_normal_episode(s_early, ~normal, episodes)
+    rows.append(
+        ProbeRow(
+            "reference",
+            "gaussian-early CI half-width",
+            "overall",
+            interval.half_width,
+            REFERENCE_HALF_WIDTH_LIMIT,
+            "half-width",
+            f"AUC {interval.value:.3f} [{interval.low:.3f}, {interval.high:.3f}]; "
+            f"over {len(spread)} normal sequences {min(spread.values()):.3f}..{max(spread.values()):.3f}",
+        )
+    )
+    for target, mask in targets:
+        keep = normal | mask
+        ci = auc_interval(s_early[keep], mask[keep], episodes[keep])
+        rows.append(
+            ProbeRow(
+                "reference", "gaussian-early", target, ci.value, None, "auc", f"[{ci.low:.3f}, {ci.high:.3f}]"
+            )
+        )
+    for target, mask in targets[:3]:
+        rows.append(
+            ProbeRow(
+                "reference",
+                "gaussian-audio",
+                target,
+                _auc(s_audio, normal, mask),
+                None,
+                "auc",
+                "audio-only reference with the anomaly's sound",
+            )
+        )
+
+    # Leak: normal stretches of anomaly episodes against nominal test windows.
+    if got.context:
+        ctx = _concat(got.context)
+        s_ctx = early.score(ctx)
+        cat = np.array(got.context_category)
+        for category, target in (("collision", "collision episodes"), ("fault", "fault episodes")):
+            mask = cat == category
+            if mask.any():
+                scores = np.r_[s_early[normal], s_ctx[mask]]
+                raw = roc_auc(
+                    np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores
+                )
+                rows.append(
+                    ProbeRow(
+                        "leak",
+                        "gaussian-early",
+                        target,
+                        raw,
+                        LEAK_LIMIT,
+                        "auc",
+                        f"{int(mask.sum())} context windows vs {int(normal.sum())} nominal",
+                    )
+                )
+
+    # Deleted sound: re-render the anomaly episodes without it.
+    muted, muted_rows = _deleted_windows(data, got.rows, progress)
+    s_muted = audio_only.score(muted)
+    muted_kinds = np.array([r.kind for r in muted_rows])
+    for label in ("collision", "mechanical"):
+        mask = muted_kinds == label
+        if mask.any():
+            scores = np.r_[s_audio[normal], s_muted[mask]]
+            raw = roc_auc(np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores)
+            with_sound = _auc(s_audio, normal, kinds == label)
+            rows.append(
+                ProbeRow(
+                    "deleted",
+                    "gaussian-audio, sound muted",
+                    label,
+                    raw,
+                    DELETED_LIMIT,
+                    "auc",
+                    f"with the sound {with_sound:.3f}; muted: {', '.join(MUTED_ANOMALY_SOURCES)}",
+                )
+            )
+    for sub in sorted({r.sub_kind for r in muted_rows}):
+        mask = np.array([r.sub_kind == sub for r in muted_rows])
+        scores = np.r_[s_audio[normal], s_muted[mask]]
+        raw = roc_auc(np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores)
+        rows.append(ProbeRow("deleted", "gaussian-audio, sound muted", f"sub:{sub}", raw, None, "auc", ""))
+
+    # Ambience beds.
+    nominal_eps = sorted({r.episode for r in got.rows if r.kind == "normal"})[:AMBIENCE_EPISODES]
+    for episode_id, value in _ambience_repetition(data, nominal_eps):
+        rows.append(
+            ProbeRow("ambience", "autocorrelation beyond 1 s", episode_id, value, REPETITION_LIMIT, "acf")
+        )
+
+    preset = str(data.manifest["preset"]["name"])
+    return AuditResult(
+        str(data.path), preset, int(data.manifest["seed"]), tuple(rows), time.perf_counter() - started
+    )

@@ -1,0 +1,142 @@
+"""The audit's verdict: one row per probe with its figure, its limit and PASS, FAIL or REPORT.
+
+The limits are those of the `paper` preset (issue 10 of the project): they are what a benchmark whose
+anomalies must be heard or felt, not guessed from context, has to satisfy. On smaller presets the same
+probes run and the same limits are shown, but a few episodes cannot meet an interval limit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from benchmarks.methods._io import write_text_atomic
+
+PASS, FAIL, REPORT = "PASS", "FAIL", "REPORT"
+
+BEHAVIOUR_LIMIT = 0.65
+"""Most a behaviour probe (reversing, turning in place, yaw rate) may separate collisions, two-sided AUC."""
+NAIVE_OVERALL_LIMIT = 0.72
+"""Most a naive audio scalar may separate all anomalies from normal windows, two-sided AUC."""
+NAIVE_SUB_KIND_LIMIT = 0.90
+"""Most a naive audio scalar may separate any one anomaly sub-kind, two-sided AUC."""
+DELETED_LIMIT = 0.60
+"""Most the audio-only reference may find anomalies whose own sound was deleted, AUC."""
+LEAK_LIMIT = 0.58
+"""Most the reference may tell the normal stretches of anomaly episodes from nominal driving, AUC."""
+CLIPPING_LIMIT = 0.005
+"""Largest share of any class's windows whose peak is within 1 dB of full scale."""
+REFERENCE_HALF_WIDTH_LIMIT = 0.03
+"""Largest half-width of the reference detector's 95 % episode-cluster bootstrap AUC interval."""
+REPETITION_LIMIT = 0.2
+"""Largest autocorrelation of an ambience bed at lags beyond 1 s."""
+CONTEXT_LIMIT = 0.65
+"""Most an episode's context (arena size) may separate anomaly windows from normal ones, two-sided AUC."""
+
+
+@dataclass(frozen=True)
+class ProbeRow:
+    """One line of the audit."""
+
+    group: str
+    """Probe family: behaviour, naive, deleted, leak, clipping, reference, ambience, context."""
+    probe: str
+    """What is measured (a scalar's name, a detector)."""
+    target: str
+    """Which windows: overall, collision, mechanical, a sub-kind, or a class."""
+    figure: float
+    """The measured figure (AUC, two-sided AUC, share or half-width; see `unit`)."""
+    limit: float | None
+    """The largest figure allowed, or None where the figure is only reported."""
+    unit: str
+    """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`."""
+    detail: str = ""
+    """Context for a reader: the raw AUC, counts, an interval."""
+
+    @property
+    def status(self) -> str:
+        """PASS or FAIL against the limit; REPORT without one (or without data: NaN)."""
+        if self.limit is None or not math.isfinite(self.figure):
+            return REPORT
+        return PASS if self.figure <= self.limit else FAIL
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready, with the status."""
+        doc = asdict(self)
+        doc["figure"] = self.figure if math.isfinite(self.figure) else None
+        doc["status"] = self.status
+        return doc
+
+
+@dataclass(frozen=True)
+class AuditResult:
+    """Every probe row plus what was audited."""
+
+    dataset: str
+    """The dataset folder."""
+    preset: str
+    """Its preset."""
+    seed: int
+    """Its seed."""
+    rows: tuple[ProbeRow, ...]
+    """The probes."""
+    seconds: float
+    """Wall time of the audit, s."""
+
+    @property
+    def failed(self) -> list[ProbeRow]:
+        """Rows over their limit."""
+        return [r for r in self.rows if r.status == FAIL]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return {
+            "dataset": self.dataset,
+            "preset": self.preset,
+            "seed": self.seed,
+            "seconds": round(self.seconds, 1),
+            "passed": not self.failed,
+            "probes": [r.to_dict() for r in self.rows],
+        }
+
+
+def _fmt(x: float | None, unit: str) -> str:
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    if unit == "share":
+        return f"{100 * x:.2f} %"
+    return f"{x:.3f}"
+
+
+def markdown(result: AuditResult) -> str:
+    """The audit as a Markdown table, failures listed first in a summary line."""
+    lines = [
+        f"# Audit of `{result.dataset}` (preset {result.preset}, seed {result.seed})",
+        "",
+        f"{len(result.rows)} probes, {len(result.failed)} over their limit; {result.seconds:.0f} s.",
+        "",
+        "`auc2` is max(AUC, 1 - AUC): a fixed scalar separates in either direction. Limits are the `paper`",
+        "preset's.",
+        "",
+        "| group | probe | windows | figure | unit | limit | status | detail |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result.rows:
+        limit = "-" if r.limit is None else _fmt(r.limit, r.unit)
+        lines.append(
+            f"| {r.group} | {r.probe} | {r.target} | {_fmt(r.figure, r.unit)} | {r.unit} | {limit} | "
+            f"{r.status} | {r.detail} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write(result: AuditResult, out: Path) -> tuple[Path, Path]:
+    """Write `audit.json` and `audit.md` into `out` (created if needed), each atomically."""
+    out.mkdir(parents=True, exist_ok=True)
+    json_path, md_path = out / "audit.json", out / "audit.md"
+    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2) + "\n")
+    write_text_atomic(md_path, markdown(result))
+    return json_path, md_path

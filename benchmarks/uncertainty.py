@@ -1,0 +1,184 @@
+"""How sure an AUC is: episode-cluster bootstrap confidence intervals and paired differences.
+
+Windows of one episode are not independent (same room, unit, SNR, route), so resampling windows would
+understate the uncertainty. The bootstrap here resamples whole episodes with replacement, separately
+among the normal episodes and among the anomalous ones (so every replicate has both classes), and
+recomputes the AUC with each window weighted by how often its episode was drawn. A paired difference
+uses the same episode draws for both methods; a method is better than another only when the 95 %
+interval of the difference excludes zero.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+BOOTSTRAP_REPLICATES = 1000
+"""Bootstrap replicates per interval."""
+BOOTSTRAP_SEED = 20261130
+"""Seed of the episode draws: the same scores always give the same interval."""
+CONFIDENCE = 0.95
+"""Coverage of every interval."""
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its episode-cluster bootstrap interval."""
+
+    value: float
+    """The estimate on the data as it is."""
+    low: float
+    """Lower end of the interval."""
+    high: float
+    """Upper end of the interval."""
+
+    @property
+    def half_width(self) -> float:
+        """Half the interval's width."""
+        return 0.5 * (self.high - self.low)
+
+    def excludes(self, x: float) -> bool:
+        """Whether `x` lies outside the interval."""
+        return not self.low <= x <= self.high
+
+    def to_dict(self) -> dict[str, float | None]:
+        """JSON-ready (NaN becomes None)."""
+
+        def clean(v: float) -> float | None:
+            return v if math.isfinite(v) else None
+
+        return {"value": clean(self.value), "low": clean(self.low), "high": clean(self.high)}
+
+
+NAN_INTERVAL = Interval(math.nan, math.nan, math.nan)
+"""What an undefined estimate (one class missing) reports."""
+
+
+def weighted_auc(scores: np.ndarray, positive: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """ROC-AUC of `positive` against the rest with per-window weights, ties counting one half.
+
+    Args:
+        scores: (n,) scores, higher = more anomalous.
+        positive: (n,) bool, the anomalous windows.
+        weights: (B, n) or (n,) non-negative weights (B replicates at once).
+
+    Returns:
+        (B,) AUCs (a scalar array for 1-D weights); NaN where a class has zero weight.
+    """
+    s = np.asarray(scores, dtype=np.float64)
+    pos = np.asarray(positive, dtype=bool)
+    w = np.atleast_2d(np.asarray(weights, dtype=np.float64))
+    order = np.argsort(s, kind="mergesort")
+    s_sorted = s[order]
+    ws = w[:, order]
+    neg_w = np.where(pos[order], 0.0, ws)
+    pos_w = np.where(pos[order], ws, 0.0)
+    # Tie groups: the last index of each run of equal scores.
+    last = np.r_[np.flatnonzero(np.diff(s_sorted)), s.size - 1]
+    cum_neg = np.cumsum(neg_w, axis=1)[:, last]
+    cum_pos = np.cumsum(pos_w, axis=1)[:, last]
+    group_neg = np.diff(cum_neg, axis=1, prepend=0.0)
+    group_pos = np.diff(cum_pos, axis=1, prepend=0.0)
+    below = cum_neg - group_neg
+    total_pos, total_neg = cum_pos[:, -1], cum_neg[:, -1]
+    wins = np.sum(group_pos * (below + 0.5 * group_neg), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        auc = np.where((total_pos > 0) & (total_neg > 0), wins / (total_pos * total_neg), np.nan)
+    return auc if np.ndim(weights) > 1 else auc.reshape(())
+
+
+def episode_draws(
+    clusters: np.ndarray,
+    positive: np.ndarray,
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> np.ndarray:
+    """(B, n) window weights: each replicate draws the normal and the anomalous episodes with replacement.
+
+    An episode counts as anomalous when any of its windows is positive (anomaly episodes contribute only
+    anomalous windows; nominal sequences only normal ones).
+    """
+    c = np.asarray(clusters).astype(str)
+    pos = np.asarray(positive, dtype=bool)
+    names, index = np.unique(c, return_inverse=True)
+    anomalous = np.zeros(names.size, dtype=bool)
+    np.logical_or.at(anomalous, index, pos)
+    rng = np.random.default_rng(seed)
+    counts = np.zeros((replicates, names.size))
+    for group in (np.flatnonzero(~anomalous), np.flatnonzero(anomalous)):
+        if group.size:
+            draws = rng.integers(0, group.size, size=(replicates, group.size))
+            counts[:, group] = np.stack([np.bincount(d, minlength=group.size) for d in draws])
+    return counts[:, index]
+
+
+def _interval(value: float, replicates: np.ndarray) -> Interval:
+    r = replicates[np.isfinite(replicates)]
+    if not math.isfinite(value) or r.size == 0:
+        return Interval(value, math.nan, math.nan)
+    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
+    low, high = np.percentile(r, [tail, 100.0 - tail])
+    return Interval(float(value), float(low), float(high))
+
+
+def auc_interval(
+    scores: np.ndarray | Sequence[float],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
+    """ROC-AUC and its episode-cluster bootstrap 95 % interval (NaN interval if a class is missing)."""
+    s = np.asarray(scores, dtype=np.float64)
+    pos = np.asarray(positive, dtype=bool)
+    if s.shape != pos.shape or np.shape(clusters) != s.shape:
+        raise ValueError(f"scores {s.shape}, positive {pos.shape}, clusters {np.shape(clusters)} must match")
+    if not pos.any() or pos.all():
+        return NAN_INTERVAL
+    value = float(weighted_auc(s, pos, np.ones(s.size)))
+    weights = episode_draws(np.asarray(clusters), pos, replicates, seed)
+    return _interval(value, weighted_auc(s, pos, weights))
+
+
+def paired_auc_difference(
+    scores_a: np.ndarray | Sequence[float],
+    scores_b: np.ndarray | Sequence[float],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
+    """AUC(a) - AUC(b) on the same windows, with the interval from the same episode draws for both."""
+    a = np.asarray(scores_a, dtype=np.float64)
+    b = np.asarray(scores_b, dtype=np.float64)
+    pos = np.asarray(positive, dtype=bool)
+    if a.shape != b.shape or a.shape != pos.shape:
+        raise ValueError(f"scores_a {a.shape}, scores_b {b.shape} and positive {pos.shape} must match")
+    if not pos.any() or pos.all():
+        return NAN_INTERVAL
+    ones = np.ones(a.size)
+    value = float(weighted_auc(a, pos, ones) - weighted_auc(b, pos, ones))
+    weights = episode_draws(np.asarray(clusters), pos, replicates, seed)
+    return _interval(value, weighted_auc(a, pos, weights) - weighted_auc(b, pos, weights))
+
+
+def auc_per_normal_episode(
+    scores: np.ndarray | Sequence[float],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+) -> dict[str, float]:
+    """AUC of all anomalous windows against the normal windows of each normal episode alone.
+
+    How much the figure depends on which nominal sequence happens to be the test normal set.
+    """
+    s = np.asarray(scores, dtype=np.float64)
+    pos = np.asarray(positive, dtype=bool)
+    c = np.asarray(clusters).astype(str)
+    out: dict[str, float] = {}
+    for name in sorted(set(c[~pos])):
+        keep = pos | (c == name)
+        out[name] = float(weighted_auc(s[keep], pos[keep], np.ones(int(keep.sum()))))
+    return out

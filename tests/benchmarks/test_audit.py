@@ -1,0 +1,110 @@
+"""The audit: its scalars against analytic oracles, and every probe computed on the tiny dataset."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.audit import FAIL, PASS, REPORT, run_audit, write
+from benchmarks.audit.core import context_starts
+from benchmarks.audit.signals import (
+    acceleration_peak,
+    audio_levels,
+    behaviour,
+    clipped,
+    forward_speed,
+    repetition,
+)
+from benchmarks.cli import main
+from sim.vocab import COLLISION, NORMAL
+
+
+def test_forward_speed_follows_the_heading() -> None:
+    yaw = np.array([0.0, np.pi / 2, np.pi])
+    quat = np.stack([np.cos(yaw / 2), 0 * yaw, 0 * yaw, np.sin(yaw / 2)], axis=1)
+    vel = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [1.0, 0.0, 0.0]])
+    np.testing.assert_allclose(forward_speed(quat, vel), [1.0, 2.0, -1.0], atol=1e-12)
+
+
+def test_behaviour_fractions_and_peaks_of_a_known_profile() -> None:
+    rate = 400.0
+    t = np.arange(0, 4.0, 1 / rate)
+    # 1 s forward at 0.5 m/s, brake linearly to 0 in 0.25 s (2 m/s^2), 0.75 s still and turning at 1 rad/s,
+    # 2 s reversing at 0.2 m/s.
+    v = np.select([t < 1.0, t < 1.25, t < 2.0], [0.5, 0.5 - 2.0 * (t - 1.0), 0.0], -0.2)
+    w = np.where((t >= 1.25) & (t < 2.0), 1.0, 0.0)
+    out = behaviour(v, w, rate, np.array([0.0, 2.0]))
+    assert out["reversing"][0] == pytest.approx(0.0)
+    assert out["reversing"][1] == pytest.approx(1.0)
+    assert out["turning_in_place"][0] == pytest.approx(0.75 / 2.0, abs=0.01)
+    assert out["peak_deceleration"][0] == pytest.approx(2.0, rel=0.05)
+    assert out["yaw_rate_peak"].tolist() == [1.0, 0.0]
+
+
+def test_audio_levels_of_a_full_scale_sine() -> None:
+    sr = 44100
+    t = np.arange(4 * sr) / sr
+    x = np.stack([np.sin(2 * np.pi * 441.0 * t)] * 2, axis=1).astype(np.float32)
+    x[: 3 * sr] *= 0.1  # 20 dB quieter until 3 s, then full scale
+    out = audio_levels(x, sr, np.array([0.0, 2.0]))
+    assert out["rms"][0] == pytest.approx(-23.01, abs=0.01)
+    assert out["peak"][0] == pytest.approx(-20.0, abs=0.01)
+    assert out["crest"][0] == pytest.approx(3.01, abs=0.02)
+    assert out["peak"][1] == pytest.approx(0.0, abs=0.01)
+    assert out["flux"][0] < 1.0  # a steady tone has no onsets
+    assert out["flux"][1] > 3.0  # a 20 dB step up is one
+    assert clipped(out["peak"]).tolist() == [False, True]
+
+
+def test_acceleration_peak_removes_gravity() -> None:
+    acc = np.tile([0.0, 0.0, 9.81], (800, 1))
+    acc[500] += [3.0, 4.0, 0.0]
+    np.testing.assert_allclose(acceleration_peak(acc, 200.0, np.array([0.0, 2.0])), [0.0, 5.0])
+
+
+def test_repetition_sees_a_looped_bed_and_not_fresh_noise() -> None:
+    rng = np.random.default_rng(0)
+    rate = 4000.0
+    loop = rng.standard_normal(int(1.5 * rate))
+    assert repetition(np.tile(loop, 8), rate) > 0.9
+    assert repetition(rng.standard_normal(12 * int(rate)), rate) < 0.05
+
+
+def test_context_windows_keep_their_distance_from_anomalies() -> None:
+    label = np.full(2000, NORMAL)  # 10 s at 200 Hz
+    label[1000:1100] = COLLISION  # 5.0 .. 5.5 s
+    starts = context_starts(label, hop_s=1.0, margin_s=1.0)
+    assert starts.tolist() == [0.0, 1.0, 2.0, 7.0, 8.0]
+
+
+def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_path: Path) -> None:
+    result = run_audit(tiny_dataset, progress=False)
+    groups = {r.group for r in result.rows}
+    assert groups == {"behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "ambience"}
+    probes = {(r.group, r.probe) for r in result.rows}
+    for name in ("reversing", "turning_in_place", "yaw_rate_peak", "peak_deceleration"):
+        assert ("behaviour", name) in probes
+    for name in ("rms", "peak", "crest", "flux", "acc_peak"):
+        assert ("naive", name) in probes
+    for row in result.rows:
+        assert row.status in (PASS, FAIL, REPORT)
+        if row.unit in ("auc", "auc2"):
+            assert 0.0 <= row.figure <= 1.0 or math.isnan(row.figure)
+        if row.unit == "auc2":
+            assert row.figure >= 0.5
+    deleted = [r for r in result.rows if r.group == "deleted" and r.target in ("collision", "mechanical")]
+    assert {r.target for r in deleted} == {"collision", "mechanical"}
+    json_path, md_path = write(result, tmp_path / "audit")
+    doc = json.loads(json_path.read_text())
+    assert doc["passed"] == (not result.failed)
+    assert len(doc["probes"]) == len(result.rows)
+    assert "| group | probe |" in md_path.read_text()
+
+
+def test_audit_command_refuses_a_missing_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["audit", str(tmp_path / "nothing")]) == 2
+    assert "nothing" in capsys.readouterr().err

@@ -17,10 +17,11 @@ from scipy.signal import butter, sosfilt
 
 from synth_audio.dsp import (
     add_at,
+    bed_pool,
     block_ramp,
     damped_modes,
     frac_phase,
-    noise_loop,
+    noise_bed,
     one_pole_lowpass,
 )
 from synth_audio.spatial import plane_wave_gains, spatialize_into
@@ -46,13 +47,17 @@ class Scene:
     """Time -> (3, 3) rotation taking world vectors to the base frame."""
 
 
-def _diffuse(mono: np.ndarray, coherence: float, rng: np.random.Generator) -> np.ndarray:
-    """(2, n) diffuse-field version of a stationary mono bed: a shared part plus decorrelated parts."""
-    n = mono.size
-    shift = int(rng.integers(n // 4 + 1, n // 2 + 2)) if n > 8 else 0
-    shared = np.float32(np.sqrt(coherence))
+def _diffuse(rng: np.random.Generator, n: int, pool: np.ndarray, coherence: float) -> np.ndarray:
+    """(2, n) unit-RMS diffuse-field bed: a part shared by both microphones plus a part of each's own.
+
+    The three parts are independent, non-repeating beds woven from one spectral `pool`
+    (`dsp.noise_bed`), so the two channels have the given coherence and neither repeats.
+    """
     own = np.float32(np.sqrt(1.0 - coherence))
-    return np.stack([shared * mono + own * np.roll(mono, shift), shared * mono + own * np.roll(mono, -shift)])
+    out = np.stack([noise_bed(rng, n, pool), noise_bed(rng, n, pool)]) * own
+    if coherence > 0:
+        out += noise_bed(rng, n, pool) * np.float32(np.sqrt(coherence))
+    return out
 
 
 def _slow_process(rng: np.random.Generator, n_ctrl: int, ctrl_rate: float, corner_hz: float) -> np.ndarray:
@@ -93,7 +98,7 @@ def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarr
     """Mono distant speech-like babble through a wall: voiced buzz and noise under syllabic envelopes."""
     nb = -(-n // _BLOCK) + 1
     ctrl = sr / _BLOCK
-    noise = noise_loop(rng, n, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
+    pool = bed_pool(rng, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
     out = np.zeros(n, dtype=np.float32)
     for _ in range(talkers):
         f0 = rng.uniform(95.0, 220.0) * np.exp(0.08 * _slow_process(rng, nb, ctrl, 3.0))
@@ -102,7 +107,7 @@ def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarr
         syllable = np.clip(_slow_process(rng, nb, ctrl, 4.5), 0.0, None)
         phrase = (_slow_process(rng, nb, ctrl, 0.3) > rng.uniform(-0.6, 0.2)).astype(np.float64)
         env = syllable * one_pole_lowpass(phrase.astype(np.float32), 8.0, int(ctrl)) * rng.uniform(0.5, 1.0)
-        mix = buzz * np.float32(0.6) + np.roll(noise, int(rng.integers(0, n))) * np.float32(0.5)
+        mix = buzz * np.float32(0.6) + noise_bed(rng, n, pool) * np.float32(0.5)
         out += mix * block_ramp(env[None, :], _BLOCK, n)[0]
     sos = butter(2, [150.0, 1200.0], btype="bandpass", fs=sr, output="sos")
     return sosfilt(sos, out).astype(np.float32)
@@ -118,7 +123,7 @@ def indoor(
     """
     n, sr = scene.n, scene.sample_rate
     duration = n / sr
-    fan = noise_loop(rng, n, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
+    fan = bed_pool(rng, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
     nb = -(-n // _BLOCK) + 1
     tb = np.arange(nb) * (_BLOCK / sr)
     mains = 50.0 if rng.uniform() < 0.5 else 60.0
@@ -127,7 +132,7 @@ def indoor(
     for freq, amp in ((mains * 2, 0.08), (mains * 3, 0.04), (blade, 0.12)):
         phase = frac_phase((freq * tb + rng.uniform())[None, :], _BLOCK, n)[0]
         hum += np.float32(amp) * np.sin(np.float32(2 * np.pi) * phase)
-    dry = _diffuse(fan * np.float32(0.6) + hum, 0.3, rng)
+    dry = _diffuse(rng, n, fan, 0.3) * np.float32(0.6) + hum[None, :]
     low_sr = sr // decimation
     low_n = -(-n // decimation)
     send = _babble(low_n, low_sr, rng, int(rng.integers(2, 5))) * np.float32(0.6)
@@ -164,18 +169,17 @@ def outdoor(scene: Scene, rng: np.random.Generator, bird_rate: float) -> tuple[n
     ctrl = sr / _BLOCK
     gust = np.exp(0.7 * _slow_process(rng, nb, ctrl, 0.25)) * rng.uniform(0.6, 1.2)
     gust_env = block_ramp(gust[None, :], _BLOCK, n)[0]
-    wind = noise_loop(rng, n, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
-    shift = int(rng.integers(n // 4 + 1, n // 2 + 2)) if n > 8 else 0
-    out = np.stack([wind, np.roll(wind, shift)]) * (gust_env * np.float32(0.8))  # wind noise is incoherent
-    rustle = noise_loop(rng, n, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
-    out += _diffuse(rustle * gust_env * np.float32(0.15), 0.4, rng)
-    rumble = noise_loop(rng, n, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
+    wind = bed_pool(rng, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
+    out = _diffuse(rng, n, wind, 0.0) * (gust_env * np.float32(0.8))  # wind noise is incoherent
+    rustle = bed_pool(rng, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
+    out += _diffuse(rng, n, rustle, 0.4) * (gust_env * np.float32(0.15))
+    rumble = bed_pool(rng, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
     swell = 0.6 + 0.4 * np.clip(_slow_process(rng, nb, ctrl, 0.05) + 1.0, 0.0, None)
     for t in _event_times(rng, 0.08, duration):  # vehicles passing by
         swell += rng.uniform(0.5, 1.5) * np.exp(
             -0.5 * ((np.arange(nb) / ctrl - t) / rng.uniform(1.0, 2.5)) ** 2
         )
-    out += _diffuse(rumble * block_ramp(swell[None, :], _BLOCK, n)[0] * np.float32(0.5), 0.7, rng)
+    out += _diffuse(rng, n, rumble, 0.7) * (block_ramp(swell[None, :], _BLOCK, n)[0] * np.float32(0.5))
     for t in _event_times(rng, bird_rate, duration):
         azimuth = float(rng.uniform(0, 2 * np.pi))
         _event_into(out, scene, _chirp(rng, sr) * np.float32(rng.lognormal(-1.2, 0.5)), float(t), azimuth)

@@ -38,7 +38,12 @@ class AudioError(ValueError):
 
 @dataclass(frozen=True)
 class AudioConfig:
-    """How to render a trace to binaural audio. Every level is relative to the robot unit's reference RMS."""
+    """How to render a trace to binaural audio.
+
+    Levels are physical: sound pressure levels (dB re 20 uPa) at the robot's microphones, mapped to digital
+    full scale by the microphone's sensitivity (`full_scale_spl_db`). The robot's own sounds scale with its
+    unit's reference drive (`reference_spl_db`); environmental sounds have their own SPL.
+    """
 
     sample_rate: int = 44100
     """Output sample rate, Hz (an integer in [16000, 96000])."""
@@ -50,10 +55,12 @@ class AudioConfig:
     """Reverberation time of the indoor room impulse response, s (0 disables reverberation)."""
     room_send_db: float = -18.0
     """Level of the robot's own sound in the room reverberation relative to its direct sound, dB."""
-    mic_noise_dbfs: float = -78.0
-    """Microphone self-noise RMS, dB re full scale (independent per channel); -inf disables it."""
-    reference_level_dbfs: float = -26.0
-    """Output RMS of the robot unit's reference drive, dB re full scale (sets the absolute scale)."""
+    mic_noise_spl_db: float = 31.0
+    """Microphone self-noise, dB SPL equivalent (a MEMS microphone of 63 dB SNR); -inf disables it."""
+    reference_spl_db: float = 68.0
+    """SPL of the robot unit's reference drive at its microphones, dB (a small robot heard from on board)."""
+    full_scale_spl_db: float = 120.0
+    """SPL that reaches digital full scale (a MEMS microphone of sensitivity -26 dBFS at 94 dB SPL)."""
     reference_speed: float = 0.6
     """Linear speed of the reference drive that defines the unit's mean RMS, m/s."""
     stems: bool = False
@@ -79,6 +86,20 @@ class AudioConfig:
     muted: tuple[str, ...] = ()
     """Source groups left out entirely (`MUTABLE_SOURCES`); every other source renders as without it."""
 
+    @property
+    def reference_level_dbfs(self) -> float:
+        """Output RMS of the robot unit's reference drive, dB re full scale."""
+        return self.reference_spl_db - self.full_scale_spl_db
+
+    @property
+    def mic_noise_dbfs(self) -> float:
+        """Microphone self-noise RMS per channel, dB re full scale (-inf: none)."""
+        return self.mic_noise_spl_db - self.full_scale_spl_db
+
+    def spl_amplitude(self, spl_db: float) -> float:
+        """Digital RMS amplitude (full scale = 1) of a sound of `spl_db` dB SPL at the microphones."""
+        return float(10.0 ** ((spl_db - self.full_scale_spl_db) / 20.0))
+
     def validate(self) -> None:
         """Raise AudioError naming the first field that cannot be honoured."""
         sr = self.sample_rate
@@ -92,7 +113,8 @@ class AudioConfig:
             "snr_db": self.snr_db,
             "rt60_s": self.rt60_s,
             "room_send_db": self.room_send_db,
-            "reference_level_dbfs": self.reference_level_dbfs,
+            "reference_spl_db": self.reference_spl_db,
+            "full_scale_spl_db": self.full_scale_spl_db,
             "reference_speed": self.reference_speed,
             "gain_motor_db": self.gain_motor_db,
             "gain_rolling_db": self.gain_rolling_db,
@@ -106,15 +128,18 @@ class AudioConfig:
         for name, value in finite.items():
             if not isinstance(value, int | float | np.floating | np.integer) or not math.isfinite(value):
                 raise AudioError(f"{name} must be a finite number, got {value!r}")
-        if not (isinstance(self.mic_noise_dbfs, int | float) and not math.isnan(self.mic_noise_dbfs)):
-            raise AudioError(f"mic_noise_dbfs must be a number or -inf, got {self.mic_noise_dbfs!r}")
-        if self.mic_noise_dbfs == math.inf:
-            raise AudioError("mic_noise_dbfs must be finite or -inf (disabled), got inf")
+        if not (isinstance(self.mic_noise_spl_db, int | float) and not math.isnan(self.mic_noise_spl_db)):
+            raise AudioError(f"mic_noise_spl_db must be a number or -inf, got {self.mic_noise_spl_db!r}")
+        if self.mic_noise_spl_db == math.inf:
+            raise AudioError("mic_noise_spl_db must be finite or -inf (disabled), got inf")
         if not 0.0 <= self.rt60_s <= 3.0:
             raise AudioError(f"rt60_s {self.rt60_s} out of range; allowed: 0..3 s")
+        if not 100.0 <= self.full_scale_spl_db <= 160.0:
+            raise AudioError(f"full_scale_spl_db {self.full_scale_spl_db} out of range; allowed: 100..160 dB")
         if not -80.0 <= self.reference_level_dbfs <= -6.0:
             raise AudioError(
-                f"reference_level_dbfs {self.reference_level_dbfs} out of range; allowed: -80..-6"
+                f"reference_spl_db {self.reference_spl_db} is {self.reference_level_dbfs:g} dBFS at "
+                f"full_scale_spl_db {self.full_scale_spl_db}; allowed: -80..-6 dBFS"
             )
         if not 0.05 <= self.reference_speed <= 5.0:
             raise AudioError(f"reference_speed {self.reference_speed} out of range; allowed: 0.05..5 m/s")

@@ -7,8 +7,10 @@ import scipy.fft as sfft
 from scipy.signal import lfilter
 
 _INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
-NOISE_PERIOD = 2**18
-"""Length of the looped noise beds, samples (5.9 s at 44.1 kHz)."""
+BED_SEGMENT = 2**16
+"""Length of the shaped segments noise beds are woven from, samples (1.5 s at 44.1 kHz)."""
+BED_POOL = 8
+"""Shaped segments per noise bed; every overlap-add snippet picks one at a random circular offset."""
 _SPAN = 2**15
 TABLE_SIZE = 2**16
 """Points per cycle of the harmonic wavetables (a power of two)."""
@@ -48,19 +50,36 @@ def shaped_noise(
     return normalise_rms(out)
 
 
-def noise_loop(
-    rng: np.random.Generator,
-    n: int,
-    sample_rate: int,
-    points_hz: tuple[float, ...],
-    gains_db: tuple[float, ...],
-    period: int = NOISE_PERIOD,
+def bed_pool(
+    rng: np.random.Generator, sample_rate: int, points_hz: tuple[float, ...], gains_db: tuple[float, ...]
 ) -> np.ndarray:
-    """Like `shaped_noise` but built from one `period`-sample loop (cheap for long renders), unit RMS."""
-    if n <= period:
-        return shaped_noise(rng, n, sample_rate, points_hz, gains_db)
-    loop = shaped_noise(rng, period, sample_rate, points_hz, gains_db)
-    return np.resize(np.roll(loop, int(rng.integers(0, period))), n)
+    """(BED_POOL, BED_SEGMENT) independently shaped unit-RMS segments for `noise_bed`."""
+    parts = [shaped_noise(rng, BED_SEGMENT, sample_rate, points_hz, gains_db) for _ in range(BED_POOL)]
+    return np.stack(parts)
+
+
+def noise_bed(rng: np.random.Generator, n: int, pool: np.ndarray) -> np.ndarray:
+    """(n,) unit-RMS stationary noise woven from `pool` that does not repeat (cheap for long renders).
+
+    Sine-windowed snippets overlap by half (their squared windows sum to one, so the power is constant);
+    each snippet is a pool segment read from a random circular offset. Two snippets are the same stretch of
+    noise only if they draw the same segment and offset (1 in BED_POOL x BED_SEGMENT), so the bed has no
+    autocorrelation peak at any lag, and beds drawn from one pool with different generators are
+    uncorrelated with each other.
+    """
+    k, size = pool.shape
+    if n <= 0:
+        return np.zeros(0, dtype=np.float32)
+    hop = size // 2
+    window = np.sin(np.pi * (np.arange(size) + 0.5) / size).astype(np.float32)
+    out = np.zeros(n + 2 * size, dtype=np.float32)
+    for start in range(0, n + hop, hop):  # out[hop:] is the bed: every sample is covered by two snippets
+        seg = pool[int(rng.integers(0, k))]
+        offset = int(rng.integers(0, size))
+        snippet = np.concatenate([seg[offset:], seg[:offset]])
+        snippet *= window
+        out[start : start + size] += snippet
+    return out[hop : hop + n]
 
 
 def harmonic_table(

@@ -20,7 +20,7 @@ from sim.trace import RobotInfo, Trace
 from synth_audio import ambience as amb
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
 from synth_audio.drive import Drive, build_drive, reference_torque
-from synth_audio.dsp import add_at, noise_loop, rms, white
+from synth_audio.dsp import add_at, bed_pool, noise_bed, rms, white
 from synth_audio.faults import fault_sound
 from synth_audio.impacts import impact, impact_impulse, scrape
 from synth_audio.motor import motor_wheel, pwm_carrier
@@ -77,14 +77,13 @@ def _robot_buses(
     buses = {"motor": bus(), "rolling": bus()}
     noise_rng = _rng(seed, "noise")
     spec = SURFACES[surface]
-    road = noise_loop(noise_rng, n, sr, spec.points_hz, spec.gains_db)
-    brush = noise_loop(noise_rng, n, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
+    road = bed_pool(noise_rng, sr, spec.points_hz, spec.gains_db)
+    brush = bed_pool(noise_rng, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
     roll_rng = _rng(seed, "rolling")
     carrier = pwm_carrier(drive, float(_rng(seed, "motor").uniform(0.0, 2.0 * np.pi)))
-    for i in range(w):
-        shift = int(n * i / w) + int(noise_rng.integers(0, max(n // (4 * w), 1)))
-        motor_wheel(drive, i, _unit_rng(robot, i), np.roll(brush, shift), carrier, buses["motor"][i])
-        rolling_wheel(drive, i, spec, np.roll(road, shift), roll_rng, buses["rolling"][i])
+    for i in range(w):  # every wheel's brush and road noise is its own, uncorrelated with the others'
+        motor_wheel(drive, i, _unit_rng(robot, i), noise_bed(noise_rng, n, brush), carrier, buses["motor"][i])
+        rolling_wheel(drive, i, spec, noise_bed(noise_rng, n, road), roll_rng, buses["rolling"][i])
     buses["rolling"][w] += chassis_rattle(drive, spec, roll_rng)
     if trace is None:
         return buses

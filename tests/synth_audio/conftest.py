@@ -10,4 +10,4 @@ from synth_audio import AudioConfig
 @pytest.fixture
 def quiet() -> AudioConfig:
     """Robot sound only: no ambience, no reverberation, no microphone noise, stems returned."""
-    return AudioConfig(ambience=False, rt60_s=0.0, mic_noise_dbfs=float("-inf"), stems=True)
+    return AudioConfig(ambience=False, rt60_s=0.0, mic_noise_spl_db=float("-inf"), stems=True)

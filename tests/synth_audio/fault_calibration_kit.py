@@ -68,7 +68,7 @@ def _band_power(x: np.ndarray, rate: float, band: tuple[float, float]) -> float:
 @functools.cache
 def _stems(kind: str, severity: float) -> dict[str, np.ndarray]:
     """Robot-only stems of the calibration drive over the steady window, float64 (n, 2)."""
-    config = AudioConfig(ambience=False, rt60_s=0.0, mic_noise_dbfs=float("-inf"), stems=True)
+    config = AudioConfig(ambience=False, rt60_s=0.0, mic_noise_spl_db=float("-inf"), stems=True)
     audio = render(trace(kind, severity), config, seed=7)
     sl = slice(int(WINDOW[0] * RATE), int(WINDOW[1] * RATE))
     return {k: v[sl].astype(np.float64) for k, v in audio.stems.items()}

@@ -33,7 +33,8 @@ def test_wav_round_trip_is_exact(tmp_path: Path, audio: Audio) -> None:
 def test_unsupported_suffix_and_over_range_flac_write_nothing(tmp_path: Path, audio: Audio) -> None:
     with pytest.raises(AudioError, match="suffix"):
         write(tmp_path / "a.mp3", audio)
-    loud = Audio(samples=audio.samples * 4.0, sample_rate=audio.sample_rate)
+    over = 1.5 / float(np.abs(audio.samples).max())  # 3.5 dB over full scale
+    loud = Audio(samples=audio.samples * over, sample_rate=audio.sample_rate)
     with pytest.raises(AudioError, match="full scale"):
         write(tmp_path / "loud.flac", loud)
     assert list(tmp_path.iterdir()) == []

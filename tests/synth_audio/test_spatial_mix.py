@@ -44,7 +44,7 @@ def test_transient_at_the_left_wheel_is_louder_on_the_left(quiet: AudioConfig) -
 @pytest.mark.parametrize("environment", ["indoor", "outdoor"])
 @pytest.mark.parametrize("snr", [6.0, 0.0, -6.0])
 def test_measured_snr_equals_requested(environment: str, snr: float) -> None:
-    config = AudioConfig(snr_db=snr, stems=True, mic_noise_dbfs=float("-inf"))
+    config = AudioConfig(snr_db=snr, stems=True, mic_noise_spl_db=float("-inf"))
     base = make_trace(2.0, config.reference_speed / 0.06, environment=environment, surface="concrete")
     trace = make_trace(
         2.0, config.reference_speed / 0.06, torque=reference_torque(base.robot), environment=environment,

@@ -1,0 +1,43 @@
+"""Noise beds never repeat: no autocorrelation peak beyond 1 s, in a bed or in the rendered ambience."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks.audit.signals import repetition
+from synth_audio.ambience import Scene, indoor, outdoor
+from synth_audio.dsp import BED_SEGMENT, bed_pool, noise_bed
+
+SR = 44100
+
+
+def test_bed_is_unit_rms_and_has_no_repetition() -> None:
+    rng = np.random.default_rng(0)
+    pool = bed_pool(rng, SR, (100, 1000, 5000), (0, -6, -20))
+    bed = noise_bed(rng, 20 * SR, pool)
+    assert bed.shape == (20 * SR,) and bed.dtype == np.float32
+    assert float(np.sqrt(np.mean(bed.astype(np.float64) ** 2))) == pytest.approx(1.0, rel=0.05)
+    # Power is constant along the bed (the squared sine windows sum to one).
+    quarter = BED_SEGMENT // 4
+    blocks = bed[: (bed.size // quarter) * quarter].reshape(-1, quarter) ** 2
+    assert np.std(blocks.mean(axis=1)) / np.mean(blocks) < 0.1
+    assert repetition(bed, SR) < 0.1  # the estimate's own noise over 400k lags; a loop gives ~1
+
+
+def test_two_beds_from_one_pool_are_uncorrelated() -> None:
+    rng = np.random.default_rng(1)
+    pool = bed_pool(rng, SR, (100, 1000, 5000), (0, -6, -20))
+    a, b = noise_bed(rng, 10 * SR, pool), noise_bed(rng, 10 * SR, pool)
+    assert abs(float(np.corrcoef(a, b)[0, 1])) < 0.02
+
+
+@pytest.mark.parametrize("where", ["indoor", "outdoor"])
+def test_ambience_does_not_repeat(where: str) -> None:
+    n = 14 * SR
+    mics = np.array([[0.1, 0.08, 0.2], [0.1, -0.08, 0.2]])
+    axes = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+    scene = Scene(n, SR, mics, axes, 343.0, lambda t: np.eye(3))
+    rng = np.random.default_rng(2)
+    dry, _ = indoor(scene, rng, 0.0, 10) if where == "indoor" else outdoor(scene, rng, 0.0)
+    assert repetition(dry.T, SR) < 0.2

@@ -15,6 +15,7 @@ from sim.rollout import simulate
 from sim.scenario import (
     Fault,
     Obstacle,
+    Reflex,
     Route,
     Scenario,
     ScenarioError,
@@ -42,6 +43,7 @@ __all__ = [
     "FaultRecord",
     "Obstacle",
     "ObstacleRecord",
+    "Reflex",
     "RobotInfo",
     "Route",
     "Scenario",

@@ -24,6 +24,11 @@ CONTROL_STEPS = 16
 SKID_TRACK_FACTOR = 2.0
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
 
+STEP_BACK = 0.4
+"""How far a pedestrian the robot bumps into steps back, away from the robot, m."""
+STEP_BACK_TIME = 0.5
+"""How long the step back takes, s (then the pedestrian stands)."""
+
 _CONTROL_SPEC = int(
     mujoco.mjtState.mjSTATE_CTRL
     | mujoco.mjtState.mjSTATE_QFRC_APPLIED
@@ -78,6 +83,7 @@ class Engine:
         self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
         self._datas = [self.data]
         self._ped_track = np.zeros((0, 0, 3))
+        self._stepped_back: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
         info = world.robot.info
         self.radius = info.wheel_radius
         track = info.track * (SKID_TRACK_FACTOR if info.model == "skid4" else 1.0)
@@ -105,6 +111,7 @@ class Engine:
         self.sensordata = self.data.sensordata.copy()
         self.time = 0.0
         self._ped_track = np.zeros((0, len(self.ped_index), 3))
+        self._stepped_back = {}
         self.forcings = make_forcings(self.scenario.faults, self.world.robot.info, self.scenario.seed)
 
     def _set_mocap(self, target: np.ndarray, times: np.ndarray) -> None:
@@ -161,6 +168,29 @@ class Engine:
         times = self.dt * np.arange(have, upto)
         peds = tuple(self.scenario.obstacles[i] for i in self.ped_index)
         self._ped_track = np.concatenate([self._ped_track, pedestrian_positions(peds, times)])
+        self._apply_step_back(have)
+
+    def step_back(self, obstacle: int, robot_xy: tuple[float, ...]) -> None:
+        """The pedestrian `obstacle` (an index into the scenario's obstacles) was bumped: from now on it
+        steps back `STEP_BACK` away from the robot over `STEP_BACK_TIME` and stands there."""
+        where = np.flatnonzero(self.ped_index == obstacle)
+        if where.size == 0 or int(where[0]) in self._stepped_back:
+            return
+        j = int(where[0])
+        i0 = round(self.time / self.dt)
+        self._ensure_ped_track(i0 + 1)
+        here = self._ped_track[i0, j, :2].copy()
+        away = here - np.asarray(robot_xy[:2], dtype=np.float64)
+        norm = float(np.linalg.norm(away))
+        self._stepped_back[j] = (i0, here, away / norm if norm > 1e-9 else np.array([1.0, 0.0]))
+        self._apply_step_back(i0)
+
+    def _apply_step_back(self, start: int) -> None:
+        for j, (i0, here, away) in self._stepped_back.items():
+            first = max(start, i0)
+            u = np.clip((np.arange(first, len(self._ped_track)) - i0) * self.dt / STEP_BACK_TIME, 0.0, 1.0)
+            smooth = u * u * (3.0 - 2.0 * u)
+            self._ped_track[first:, j, :2] = here + STEP_BACK * smooth[:, None] * away
 
     def _apply_faults(self, control: np.ndarray, times: np.ndarray) -> None:
         """Fault wrenches for the period: hub forces act on the chassis at the wheel centre (the tyre and

@@ -18,6 +18,7 @@ from sim.scenario import (
     OBSTACLE_SIZES,
     Fault,
     Obstacle,
+    Reflex,
     Route,
     Scenario,
     ScenarioError,
@@ -40,6 +41,12 @@ _CLUTTER = {
     "indoor": ("desk", "chair", "box", "luggage", "door", "wall"),
     "outdoor": ("curb", "box", "luggage", "wall", "chair"),
 }
+OBSTACLE_ENVIRONMENTS: dict[str, tuple[str, ...]] = {
+    "door": ("indoor",),
+    "desk": ("indoor",),
+    "curb": ("outdoor",),
+}
+"""Where an obstacle kind belongs when it is not everywhere (doors and desks indoors, curbs outdoors)."""
 _TRANSIENTS = {
     "indoor": ("seam", "threshold", "cable", "debris"),
     "outdoor": ("seam", "kerb_ramp", "cable", "debris"),
@@ -175,8 +182,14 @@ def random_scenario(
     rng = np.random.default_rng([seed, CATEGORIES.index(category), 0x5CE])
     if category == "collision" and obstacle_kind is None:
         obstacle_kind = str(rng.choice(vocab.OBSTACLE_KINDS))
+    where = OBSTACLE_ENVIRONMENTS.get(obstacle_kind or "", vocab.ENVIRONMENTS)
     if environment is None:
-        environment = "outdoor" if obstacle_kind == "curb" else str(rng.choice(vocab.ENVIRONMENTS))
+        environment = str(rng.choice(where))
+    elif category == "collision" and environment not in where:
+        raise ScenarioError(
+            f"environment = {environment!r} is invalid for obstacle_kind {obstacle_kind!r}; "
+            f"allowed: {', '.join(where)}"
+        )
     surfaces = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
     drawn = str(rng.choice(surfaces))  # drawn even when given, so the other draws stay the same
     surface = drawn if surface is None else surface
@@ -213,6 +226,7 @@ def random_scenario(
         accel=float(rng.uniform(0.5, 1.2)),
         yaw_rate=float(rng.uniform(0.8, 1.5)),
         loop=True,
+        reflex=_reflex(rng),
     )
     transients = _transients(rng, environment, arena, start, waypoints, duration, transient_density)
     faults: tuple[Fault, ...] = ()
@@ -299,6 +313,44 @@ def _free_point(
     return None
 
 
+BACK_OUT_SHARE = 0.25
+"""Share of route waypoints the robot leaves by backing out (reversing 0.6-1.5 m) before driving on."""
+ESTOP_SHARE = 0.08
+"""Share of legs on which the robot makes an emergency stop (braking at the torque limit) midway."""
+NEAR_MISS_EVERY = 15.0
+"""Mean driving time between near misses (legs at an obstacle that the safety field stops short), s."""
+BRAKE_DECEL = 3.0
+"""Deceleration a safety stop is planned with, m/s^2 (the robot brakes harder: it stops short)."""
+FIRST_HIT = (0.05, 0.3)
+"""Range of the planned time of a collision episode's first hit, as fractions of its duration."""
+REFLEX_WEIGHTS: dict[str, float] = {"reverse": 0.4, "wait": 0.25, "push": 0.2, "continue": 0.15}
+"""How often each reflex is drawn (every category draws one: nominal near misses use it too)."""
+
+
+def _reflex(rng: np.random.Generator) -> Reflex:
+    """A robot's reflex after a contact or a safety stop, drawn with `REFLEX_WEIGHTS`."""
+    kinds = list(REFLEX_WEIGHTS)
+    kind = str(rng.choice(kinds, p=np.array([REFLEX_WEIGHTS[k] for k in kinds])))
+    return Reflex(
+        kind=kind,
+        delay=float(rng.uniform(0.0, 0.3)),
+        wait=float(rng.uniform(0.0, 2.5)),
+        reverse_time=float(rng.uniform(0.4, 1.5)),
+        reverse_speed=float(rng.uniform(0.15, 0.35)),
+        push_time=float(rng.uniform(0.3, 2.5)) if kind == "push" else 0.0,
+    )
+
+
+def _leg_speed(rng: np.random.Generator) -> float:
+    """Cruise speed of a leg, m/s (every leg, nominal or driving at an obstacle, draws from this)."""
+    return float(rng.uniform(0.3, 1.4))
+
+
+def _dwell(rng: np.random.Generator) -> float:
+    """Stop at a waypoint: a quarter of them, 0.5-4 s."""
+    return float(rng.uniform(0.5, 4.0)) if rng.random() < 0.25 else 0.0
+
+
 def _route(
     rng: np.random.Generator,
     category: str,
@@ -306,47 +358,68 @@ def _route(
     arena: tuple[float, float],
     duration: float,
 ) -> tuple[list[Waypoint], tuple[float, float, float]]:
-    """The episode's waypoints and start pose (collision runs: a short drive, a ram, then wandering)."""
+    """The episode's waypoints and start pose: the same wandering route with the same manoeuvres in
+    every category; a collision episode's route starts with a leg that drives at obstacle 0 without
+    seeing it (the start is drawn so that the hit comes at `FIRST_HIT` of the episode)."""
     if category != "collision":
-        return _wander(rng, arena, obstacles, duration)
-    first, begin = _first_ram(rng, obstacles, arena)
-    rest, _ = _wander(rng, arena, obstacles, duration, begin=np.array([first[-1].x, first[-1].y]))
-    heading = math.atan2(first[0].y - begin[1], first[0].x - begin[0])
-    start = (float(begin[0]), float(begin[1]), heading + float(rng.uniform(-0.3, 0.3)))
-    waypoints = first + rest
-    n_more = min(3, int(duration // 60.0))
-    if n_more:
-        waypoints = _insert_rams(rng, waypoints, obstacles, arena, n_more, start, duration)
-    return waypoints, start
-
-
-def _first_ram(
-    rng: np.random.Generator, obstacles: list[Obstacle], arena: tuple[float, float]
-) -> tuple[list[Waypoint], np.ndarray]:
-    """Ram legs at obstacle 0 and a start point a short nominal drive (1.5-3.5 m) from their approach
-    point, roughly in line with the ram so that the hit comes within the first ~12 s of an episode."""
+        waypoints, start = _wander(rng, arena, obstacles, duration)
+        return _decorate(rng, waypoints, start, obstacles, arena, duration), start
     hx, hy = arena
     for _ in range(200):
-        legs = _ram_legs(rng, obstacles[0], obstacles[1:], arena)
+        legs = _legs_at(rng, obstacles[0], 0, obstacles[1:], arena, hit=True)
         if legs is None:
             continue
         approach = np.array([legs[0].x, legs[0].y])
+        aim = np.array([legs[1].x, legs[1].y])
         if _clearance(approach[None], obstacles) < 0.6:
             continue
-        ram = np.array([legs[1].x, legs[1].y]) - approach
-        along = math.atan2(ram[1], ram[0])
+        reach = float(np.clip(legs[0].speed * rng.uniform(*FIRST_HIT) * duration, 1.2, MAX_LEG))
+        along = math.atan2(aim[1] - approach[1], aim[0] - approach[0])
         for _ in range(30):
-            angle = along + float(rng.uniform(-0.8, 0.8))
-            begin = approach - float(rng.uniform(1.5, 3.5)) * np.array([math.cos(angle), math.sin(angle)])
+            angle = along + float(rng.uniform(-1.0, 1.0))
+            begin = approach - reach * np.array([math.cos(angle), math.sin(angle)])
             if abs(begin[0]) > hx - 0.8 or abs(begin[1]) > hy - 0.8:
                 continue
             if _clearance(begin[None], obstacles) > CLEARANCE and _segment_clear(
                 begin, approach, obstacles, 0.6
             ):
-                return legs, begin
+                break
+        else:
+            continue
+        stand = aim + (approach - aim) * min(1.0, 0.9 / max(float(np.linalg.norm(approach - aim)), 1e-9))
+        try:
+            rest, _ = _wander(rng, arena, obstacles, duration, begin=stand)
+        except ScenarioError:
+            continue
+        heading = math.atan2(approach[1] - begin[1], approach[0] - begin[0])
+        start = (float(begin[0]), float(begin[1]), heading + float(rng.uniform(-0.3, 0.3)))
+        after = (float(stand[0]), float(stand[1]), along + math.pi)
+        waypoints = legs + _decorate(rng, rest, after, obstacles, arena, duration)
+        n_more = min(2, int(duration // 60.0))
+        if n_more:
+            waypoints = _insert_legs_at_obstacles(
+                rng, waypoints, obstacles, arena, n_more, start, duration, target=0
+            )
+        return waypoints, start
     raise ScenarioError(
         f"obstacle_kind = {obstacles[0].kind!r}: no clear approach found in this arena; try another seed"
     )
+
+
+def _decorate(
+    rng: np.random.Generator,
+    waypoints: list[Waypoint],
+    start: tuple[float, float, float],
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+    duration: float,
+) -> list[Waypoint]:
+    """A route with the manoeuvres of nominal driving: emergency stops, back-outs and near misses."""
+    out = _manoeuvres(rng, start, waypoints, obstacles, arena)
+    n_near = int(rng.poisson(duration / NEAR_MISS_EVERY))
+    if n_near:
+        out = _insert_legs_at_obstacles(rng, out, obstacles, arena, n_near, start, duration)
+    return out
 
 
 def _wander(
@@ -360,7 +433,7 @@ def _wander(
     start = begin if begin is not None else _free_point(rng, arena, obstacles)
     if start is None:
         raise ScenarioError("arena too crowded: no free start point (reduce obstacles)")
-    # The first leg may leave a point closer to an obstacle than CLEARANCE (a ram's approach point).
+    # The first leg may leave a point closer to an obstacle than CLEARANCE (where a hit left the robot).
     first_margin = min(CLEARANCE, _clearance(start[None], obstacles) - 0.05)
     points = [start]
     waypoints: list[Waypoint] = []
@@ -375,8 +448,8 @@ def _wander(
             continue
         if not _segment_clear(points[-1], p, obstacles, CLEARANCE if len(points) > 1 else first_margin):
             continue
-        speed = float(rng.uniform(0.3, 1.4))
-        dwell = float(rng.uniform(0.5, 4.0)) if rng.random() < 0.25 else 0.0
+        speed = _leg_speed(rng)
+        dwell = _dwell(rng)
         waypoints.append(Waypoint(float(p[0]), float(p[1]), speed, dwell))
         planned += float(np.linalg.norm(p - points[-1])) / speed + dwell + 1.5
         points.append(p)
@@ -392,30 +465,90 @@ def _wander(
     return waypoints, (float(start[0]), float(start[1]), yaw + float(rng.uniform(-0.5, 0.5)))
 
 
-def _insert_rams(
+def _manoeuvres(
+    rng: np.random.Generator,
+    start: tuple[float, float, float],
+    waypoints: list[Waypoint],
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+) -> list[Waypoint]:
+    """Emergency stops midway along some legs and back-outs (a reversing leg) after some waypoints."""
+    hx, hy = arena
+    out: list[Waypoint] = []
+    here = np.array(start[:2])
+    for i, wp in enumerate(waypoints):
+        there = np.array([wp.x, wp.y])
+        nxt = waypoints[(i + 1) % len(waypoints)]
+        if wp.ram >= 0 or nxt.ram >= 0:  # legs at an obstacle and their approach stay as planned
+            out.append(wp)
+            here = there
+            continue
+        if rng.random() < ESTOP_SHARE and np.linalg.norm(there - here) > 1.5:
+            mid = here + float(rng.uniform(0.3, 0.7)) * (there - here)
+            out.append(
+                Waypoint(float(mid[0]), float(mid[1]), wp.speed, float(rng.uniform(0.3, 3.0)), hard_stop=True)
+            )
+        out.append(wp)
+        if rng.random() < BACK_OUT_SHARE:
+            heading = math.atan2(there[1] - here[1], there[0] - here[0]) + math.pi
+            for _ in range(6):
+                angle = heading + float(rng.uniform(-0.6, 0.6))
+                back = there + float(rng.uniform(0.6, 1.5)) * np.array([math.cos(angle), math.sin(angle)])
+                inside = abs(back[0]) <= hx - 0.6 and abs(back[1]) <= hy - 0.6
+                if (
+                    inside
+                    and _segment_clear(there, back, obstacles, 0.5)
+                    and _segment_clear(back, np.array([nxt.x, nxt.y]), obstacles, 0.5)
+                ):
+                    out.append(
+                        Waypoint(
+                            float(back[0]),
+                            float(back[1]),
+                            float(rng.uniform(0.2, 0.5)),
+                            _dwell(rng),
+                            reverse=True,
+                        )
+                    )
+                    break
+        here = there
+    return out
+
+
+def _insert_legs_at_obstacles(
     rng: np.random.Generator,
     waypoints: list[Waypoint],
     obstacles: list[Obstacle],
     arena: tuple[float, float],
-    n_hits: int,
+    count: int,
     start: tuple[float, float, float],
     duration: float,
+    target: int | None = None,
 ) -> list[Waypoint]:
-    """Insert approach, ram and retreat legs towards obstacle 0 at chosen speeds and angles."""
+    """Insert `count` legs that drive at an obstacle: near misses (any obstacle, stopped short by the
+    safety field) or, with `target`, hits on that obstacle (not seen: stop_short 0).
+
+    The legs go in at planned times drawn over the episode. Each is an approach point (an ordinary
+    waypoint) and the leg at the obstacle; after the reflex the robot drives on to the route's next
+    waypoint.
+    """
     out = list(waypoints)
     pts = np.array([(start[0], start[1])] + [(w.x, w.y) for w in out])
-    leg_time = 1.8 * np.linalg.norm(np.diff(pts, axis=0), axis=1) / np.array([w.speed for w in out])
+    leg_time = 1.8 * np.linalg.norm(np.diff(pts, axis=0), axis=1) / np.array([max(w.speed, 0.1) for w in out])
     arrive = np.concatenate([[0.0], np.cumsum(leg_time + np.array([w.dwell for w in out]) + 2.5)])
-    wanted = np.sort(rng.uniform(0.05, 0.6, size=n_hits)) * duration
+    wanted = np.sort(rng.uniform(0.05, 0.85, size=count)) * duration
     inserted: list[tuple[int, list[Waypoint]]] = []
     used: set[int] = set()
-    for n, t in enumerate(wanted):
-        # The first ram follows one nominal leg, so that even a short episode contains it.
-        first = min(1, len(pts) - 2) if n == 0 else max(0, int(np.searchsorted(arrive, t)) - 1)
-        for slot in range(first, len(pts) - 1):
-            if slot in used:
+    for t in wanted:
+        slot0 = max(0, int(np.searchsorted(arrive, t)) - 1)
+        for slot in range(slot0, len(pts) - 1):
+            if slot in used or out[slot].reverse or out[slot].hard_stop or out[slot].ram >= 0:
                 continue
-            legs = _try_ram(rng, pts[slot], pts[slot + 1], obstacles, arena)
+            which = (
+                target if target is not None else int(rng.integers(0, len(obstacles))) if obstacles else -1
+            )
+            if which < 0:
+                break
+            legs = _try_leg_at(rng, pts[slot], pts[slot + 1], obstacles, which, arena, hit=target is not None)
             if legs is not None:
                 inserted.append((slot, legs))
                 used.add(slot)
@@ -425,32 +558,54 @@ def _insert_rams(
     return out
 
 
-def _try_ram(
+def _try_leg_at(
     rng: np.random.Generator,
     prev: np.ndarray,
     nxt: np.ndarray,
     obstacles: list[Obstacle],
+    which: int,
     arena: tuple[float, float],
+    hit: bool,
 ) -> list[Waypoint] | None:
-    """Ram legs between route points prev and nxt whose connecting legs are clear, or None."""
+    """Approach and obstacle legs between route points prev and nxt whose connecting legs are clear."""
+    others = [ob for i, ob in enumerate(obstacles) if i != which]
     for _ in range(15):
-        legs = _ram_legs(rng, obstacles[0], obstacles[1:], arena)
+        legs = _legs_at(rng, obstacles[which], which, others, arena, hit)
         if legs is None:
             continue
         approach = np.array([legs[0].x, legs[0].y])
-        if _segment_clear(prev, approach, obstacles, 0.6) and _segment_clear(approach, nxt, obstacles, 0.6):
+        aim = np.array([legs[1].x, legs[1].y])
+        # Where the robot stands when the reflex has run: about its length short of the aim point.
+        stand = aim + (approach - aim) * min(1.0, 0.9 / max(float(np.linalg.norm(approach - aim)), 1e-9))
+        if (
+            np.linalg.norm(approach - prev) <= MAX_LEG
+            and _segment_clear(prev, approach, obstacles, 0.6)
+            and _segment_clear(approach, nxt, obstacles, 0.6)
+            and _segment_clear(
+                stand, nxt, obstacles if obstacles[which].kind != "pedestrian" else others, 0.35
+            )
+        ):
             return legs
     return None
 
 
-def _ram_legs(
-    rng: np.random.Generator, target: Obstacle, others: list[Obstacle], arena: tuple[float, float]
+def _legs_at(
+    rng: np.random.Generator,
+    target: Obstacle,
+    index: int,
+    others: list[Obstacle],
+    arena: tuple[float, float],
+    hit: bool,
 ) -> list[Waypoint] | None:
-    """Approach point, ram leg (speed and angle drawn) and retreat, or None if the draw is blocked."""
+    """An approach point and a leg at a face of `target` (speed and angle drawn like any leg), or None.
+
+    A hit drives 0.4 m past the face; a near miss plans the safety stop so that braking at
+    `BRAKE_DECEL` ends 0.05-0.4 m short of the face.
+    """
     hx, hy = arena
-    speed = float(rng.uniform(0.5, 1.4))
+    speed = _leg_speed(rng)
     angle = float(rng.uniform(-0.7, 0.7))
-    run = float(rng.uniform(1.6, 2.4))
+    run = float(rng.uniform(1.2, 2.5))
     c, s = math.cos(target.yaw), math.sin(target.yaw)
     if target.kind == "pedestrian":
         mid = (
@@ -464,7 +619,7 @@ def _ram_legs(
         faces = [(1, 0), (-1, 0), (0, 1), (0, -1)]
         fx, fy = faces[int(rng.integers(0, 4))]
         if target.kind == "door":
-            # A door stands against a border wall; only its face looking into the arena can be hit.
+            # A door stands against a border wall; only its face looking into the arena can be reached.
             if abs(target.yaw) < 1e-9:
                 normal_world = np.array([-math.copysign(1.0, target.x), 0.0])
             else:
@@ -488,10 +643,10 @@ def _ram_legs(
         return None
     aim = face + direction * 0.4
     aim = np.clip(aim, [-hx + 0.31, -hy + 0.31], [hx - 0.31, hy - 0.31])
+    stop_short = 0.0 if hit else float(rng.uniform(0.05, 0.4)) + speed**2 / (2.0 * BRAKE_DECEL)
     return [
-        Waypoint(float(approach[0]), float(approach[1]), 0.7, float(rng.uniform(0.2, 0.6))),
-        Waypoint(float(aim[0]), float(aim[1]), speed, 0.0, ram=0),
-        Waypoint(float(approach[0]), float(approach[1]), 0.5, 0.0),
+        Waypoint(float(approach[0]), float(approach[1]), _leg_speed(rng), _dwell(rng)),
+        Waypoint(float(aim[0]), float(aim[1]), speed, 0.0, ram=index, stop_short=stop_short),
     ]
 
 

@@ -44,7 +44,10 @@ def run_route(engine: Engine, scenario: Scenario) -> np.ndarray:
     found_cols = sl.obstacle_contact + 7 * np.arange(k_obs)
     live = np.zeros(k_obs, dtype=bool)
     live[engine.ped_index.astype(np.int64)] = True
-    controller = RouteController(scenario.route, live_mask=live)
+    footprints = np.array([[ob.size[0], ob.size[1], ob.yaw] for ob in world.obstacles]).reshape(k_obs, 3)
+    controller = RouteController(
+        scenario.route, live_mask=live, footprints=footprints, reach=world.bumper_reach
+    )
     period = CONTROL_STEPS * engine.dt
     pos_cols = (sl.obstacle_pos + 3 * np.arange(k_obs)[:, None] + np.arange(2)[None, :]).ravel()
     prev = 0
@@ -56,7 +59,10 @@ def run_route(engine: Engine, scenario: Scenario) -> np.ndarray:
             float(sd[sl.base_pos + 1]),
             yaw_of(sd[sl.base_quat : sl.base_quat + 4]),
         )
-        contact = bool(start > 0 and (out[prev:start, found_cols] > 0).any())
+        touched = (out[prev:start, found_cols] > 0).any(axis=0) if start > 0 else np.zeros(k_obs, dtype=bool)
+        contact = bool(touched.any())
+        for ob in np.flatnonzero(touched & live):
+            engine.step_back(int(ob), pose)  # a pedestrian who is bumped steps back and stands
         targets = sd[pos_cols].reshape(k_obs, 2)
         v, w = controller.command(engine.time, pose, contact, targets, period)
         engine.step(engine.wheel_commands(v, w), out[start : start + k])

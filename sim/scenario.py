@@ -70,7 +70,7 @@ OBSTACLE_MASS: dict[str, float] = {"box": 4.0, "luggage": 14.0}
 
 TRANSIENT_HEIGHT: dict[str, float] = {
     "seam": 0.004,
-    "threshold": 0.012,
+    "threshold": 0.015,
     "cable": 0.007,
     "kerb_ramp": 0.025,
     "debris": 0.008,
@@ -157,16 +157,63 @@ class Waypoint:
     dwell: float = 0.0
     """Stop at this point for this long, s (0 = drive through)."""
     ram: int = -1
-    """Index of an obstacle to drive into on this leg (collision runs), -1 = none; the leg then
-    targets the obstacle's live centre and ends at contact (the robot backs off) or after a timeout."""
+    """Index of an obstacle this leg drives at, -1 = none; the leg targets the obstacle's live centre
+    and ends at contact or at the safety stop (`stop_short`), where the route's reflex takes over, or
+    after a timeout."""
+    stop_short: float = 0.0
+    """On a `ram` leg: the safety field stops the robot (braking at the torque limit) when its bumper is
+    this close to the obstacle, m (a near miss); 0 = the obstacle is not seen and the robot hits it."""
+    reverse: bool = False
+    """Drive this leg backwards (backing out of a dead end, docking, a three-point turn)."""
+    hard_stop: bool = False
+    """Stop at this point by braking at the torque limit (an emergency stop), not by a smooth ramp."""
 
     def __post_init__(self) -> None:
         for name in ("x", "y"):
             _finite(f"route.waypoint.{name}", getattr(self, name))
         _in_range("route.waypoint.speed", self.speed, 0.0, MAX_WHEEL_SPEED)
         _in_range("route.waypoint.dwell", self.dwell, 0.0, 600.0)
+        _in_range("route.waypoint.stop_short", self.stop_short, 0.0, 3.0)
         if not isinstance(self.ram, int) or isinstance(self.ram, bool) or self.ram < -1:
             _fail("route.waypoint.ram", self.ram, "-1 or an obstacle index")
+        if self.stop_short > 0 and self.ram < 0:
+            _fail("route.waypoint.stop_short", self.stop_short, "0 on a leg without `ram`")
+        for name in ("reverse", "hard_stop"):
+            if not isinstance(getattr(self, name), bool):
+                _fail(f"route.waypoint.{name}", getattr(self, name), "true or false")
+        if self.reverse and self.ram >= 0:
+            _fail("route.waypoint.reverse", self.reverse, "false on a `ram` leg")
+
+
+REFLEX_KINDS: tuple[str, ...] = ("reverse", "wait", "push", "continue")
+"""How the robot reacts to a contact or a safety stop: brake then back off; brake then stand; keep pushing
+(stall) before braking; glance off and go on to the next waypoint without braking."""
+
+
+@dataclass(frozen=True)
+class Reflex:
+    """The robot's reaction to touching an obstacle, or to its safety field stopping it (near miss)."""
+
+    kind: str = "reverse"
+    """One of `REFLEX_KINDS` (a safety stop always brakes: `push` and `continue` then stand like `wait`)."""
+    delay: float = 0.0
+    """Reaction time: the command in force carries on this long before the reflex acts, s."""
+    wait: float = 0.0
+    """Standstill after braking, motors holding, s."""
+    reverse_time: float = 0.7
+    """How long `reverse` backs off, s."""
+    reverse_speed: float = 0.25
+    """Backing-off speed of `reverse`, m/s."""
+    push_time: float = 0.0
+    """How long `push` keeps driving into the obstacle (wheels stalled at the torque limit), s."""
+
+    def __post_init__(self) -> None:
+        _one_of("route.reflex.kind", self.kind, REFLEX_KINDS)
+        _in_range("route.reflex.delay", self.delay, 0.0, 2.0)
+        _in_range("route.reflex.wait", self.wait, 0.0, 30.0)
+        _in_range("route.reflex.reverse_time", self.reverse_time, 0.0, 10.0)
+        _in_range("route.reflex.reverse_speed", self.reverse_speed, 0.0, MAX_WHEEL_SPEED)
+        _in_range("route.reflex.push_time", self.push_time, 0.0, 10.0)
 
 
 @dataclass(frozen=True)
@@ -183,6 +230,8 @@ class Route:
     """Largest yaw rate the controller commands, rad/s."""
     loop: bool = True
     """Start again from the first waypoint when the last is reached."""
+    reflex: Reflex = field(default_factory=Reflex)
+    """Reaction to a contact or a safety stop."""
 
     def __post_init__(self) -> None:
         if len(self.start) != 3:
@@ -192,6 +241,8 @@ class Route:
         object.__setattr__(self, "start", tuple(float(v) for v in self.start))
         wps = tuple(Waypoint(**w) if isinstance(w, dict) else w for w in self.waypoints)
         object.__setattr__(self, "waypoints", wps)
+        if isinstance(self.reflex, dict):
+            object.__setattr__(self, "reflex", Reflex(**self.reflex))
         _in_range("route.accel", self.accel, 0.05, 5.0)
         _in_range("route.yaw_rate", self.yaw_rate, 0.05, 4.0)
 

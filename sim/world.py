@@ -114,6 +114,8 @@ class World:
     """(K,) True for free bodies (pushed when hit)."""
     transient_height: np.ndarray
     """(T,) height of each transient, m."""
+    bumper_reach: float
+    """Distance from the robot's centre to the front of its front bumper, m (for the safety field)."""
 
 
 def build_world(scenario: Scenario) -> World:
@@ -217,7 +219,14 @@ def build_world(scenario: Scenario) -> World:
         obstacle_mocap=np.asarray(model.body_mocapid[ob_body], dtype=np.int64),
         obstacle_free=np.array([ob.kind in OBSTACLE_MASS for ob in obstacles], dtype=bool),
         transient_height=np.array([TRANSIENT_HEIGHT[t.kind] for t in scenario.transients]),
+        bumper_reach=_bumper_reach(model, prefix),
     )
+
+
+def _bumper_reach(model: mujoco.MjModel, prefix: str) -> float:
+    """Front of the robot's front bumper (a capsule across the robot) from the base centre, m."""
+    bumper = model.geom(prefix + "bumper_front")
+    return float(bumper.pos[0] + bumper.size[0])
 
 
 def _arena(scenario: Scenario) -> mjcf.RootElement:

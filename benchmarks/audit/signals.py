@@ -13,6 +13,8 @@ from msvdd.contract import WINDOW_S
 
 REVERSE_SPEED = 0.05
 """Forward speed below minus this counts as reversing, m/s."""
+REVERSE_MIN_S = 0.25
+"""Reversing counts when it lasts at least this long, s: a manoeuvre, not the rebound of a hit."""
 STILL_SPEED = 0.05
 """Forward speed under this (in magnitude) counts as not driving, m/s."""
 TURN_RATE = 0.3
@@ -52,6 +54,9 @@ def behaviour(
 ) -> dict[str, np.ndarray]:
     """Per window: fraction reversing, fraction turning in place, peak deceleration, peak yaw rate.
 
+    Reversing is backing at more than `REVERSE_SPEED` for at least `REVERSE_MIN_S` (a manoeuvre; the
+    rebound of a hit is the impact, like the deceleration).
+
     Args:
         speed: (n,) forward speed at `rate`, m/s.
         yaw_rate: (n,) yaw rate about the body z axis, rad/s.
@@ -65,12 +70,25 @@ def behaviour(
     decel = -np.gradient(smooth, 1.0 / rate)
     spans = _spans(starts_s, rate, v.size)
     still = np.abs(v) < STILL_SPEED
+    backing = _runs_at_least(v < -REVERSE_SPEED, max(1, round(REVERSE_MIN_S * rate)))
     return {
-        "reversing": np.array([np.mean(v[s] < -REVERSE_SPEED) for s in spans]),
+        "reversing": np.array([np.mean(backing[s]) for s in spans]),
         "turning_in_place": np.array([np.mean(still[s] & (w[s] > TURN_RATE)) for s in spans]),
         "peak_deceleration": np.array([np.max(decel[s]) for s in spans]),
         "yaw_rate_peak": np.array([np.max(w[s]) for s in spans]),
     }
+
+
+def _runs_at_least(mask: np.ndarray, length: int) -> np.ndarray:
+    """`mask` with its runs of True shorter than `length` samples cleared."""
+    m = np.asarray(mask, dtype=bool)
+    edges = np.diff(np.r_[0, m.astype(np.int8), 0])
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros_like(m)
+    for a, b in zip(starts, stops, strict=True):
+        if b - a >= length:
+            out[a:b] = True
+    return out
 
 
 def audio_levels(audio: np.ndarray, rate: int, starts_s: np.ndarray) -> dict[str, np.ndarray]:

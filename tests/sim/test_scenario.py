@@ -118,8 +118,35 @@ def test_random_scenarios_are_valid_for_short_and_long_episodes(category: str, d
         sc = random_scenario(seed, category, duration=duration, robot_model="diff2" if seed == 2 else "skid4")
         assert sc.route.loop and len(sc.route.waypoints) >= 2
         assert len(sc.transients) >= 2
-        rams = [w for w in sc.route.waypoints if w.ram >= 0]
-        assert (len(rams) >= 1) == (category == "collision")
+        hits = [w for w in sc.route.waypoints if w.ram >= 0 and w.stop_short == 0]
+        assert (len(hits) >= 1) == (category == "collision")
+        assert all(w.ram == 0 for w in hits)  # only the collision target is driven into
+        if category == "collision":
+            assert sc.route.waypoints[1] == hits[0]  # the hit is the route's second leg
+
+
+def test_every_category_draws_the_same_manoeuvres() -> None:
+    # Near misses, back-outs, emergency stops and the reflex are nominal driving: every category has them.
+    for category in ("nominal", "collision", "fault"):
+        counts = {"near": 0, "back": 0, "estop": 0}
+        reflexes = set()
+        for seed in range(8):
+            sc = random_scenario(seed, category, duration=120.0)
+            wps = sc.route.waypoints
+            counts["near"] += sum(w.stop_short > 0 for w in wps)
+            counts["back"] += sum(w.reverse for w in wps)
+            counts["estop"] += sum(w.hard_stop for w in wps)
+            reflexes.add(sc.route.reflex.kind)
+        assert min(counts.values()) >= 3, (category, counts)
+        assert len(reflexes) >= 2, (category, reflexes)
+
+
+def test_obstacles_stand_where_they_belong() -> None:
+    for seed in range(6):
+        for kind, where in (("door", "indoor"), ("desk", "indoor"), ("curb", "outdoor")):
+            assert random_scenario(seed, "collision", duration=24.0, obstacle_kind=kind).environment == where
+    with pytest.raises(ScenarioError, match=r"environment = 'outdoor'.*obstacle_kind 'door'.*indoor"):
+        random_scenario(0, "collision", duration=24.0, obstacle_kind="door", environment="outdoor")
 
 
 @pytest.mark.parametrize(

@@ -1,8 +1,18 @@
 """Collision impacts by modal synthesis per material, and scraping during sustained contact.
 
 The excitation is a Hertzian half-sine force pulse: its area is the contact impulse and its length shrinks
-with the approach speed (tau ~ v^-1/5), so harder and faster hits excite higher modes. The response starts
-at the event's audio sample, not spread over MuJoCo's soft-contact force curve.
+with the approach speed (tau ~ v^-1/5), so harder and faster hits excite higher modes. A collision goes
+through the robot's rubber bumper, in series with the struck material: the contact lasts
+sqrt(tau_bumper^2 + tau_material^2) (`collision_contact_time`), so a hit is a thud with the struck
+object's low modes, not a click. The response starts at the event's audio sample, not spread over
+MuJoCo's soft-contact force curve.
+
+Level law (physical, never set by a detector's score): the chassis and the struck surface ring in
+proportion to the momentum the hit exchanges (linear acoustics), on one scale for collisions, benign
+bumps and the impulsive wheel faults (`IMPACT_SCALE`). Measured at the microphones
+(`tests/synth_audio/level_kit.py`), a 20 kg robot meeting a plaster wall at 0.7 m/s peaks at about
+100 dB SPL, a wheel crossing a 15 mm threshold at 1.3 m/s at about 90 dB SPL (a clear clack over the
+drive's 68-75 dB), a pedestrian met at 0.7 m/s at about 80 dB.
 """
 
 from __future__ import annotations
@@ -48,21 +58,27 @@ MATERIALS: dict[str, Material] = {
                           0.004, 0.5, 0.9),
     "hard_plastic": Material((350, 820, 1500, 2600, 4200), (0.14, 0.11, 0.08, 0.06, 0.04),
                              (0.8, 1.0, 0.7, 0.5, 0.3), 0.0008, 0.45, 1.0),
-    "soft_body": Material((60, 130, 260), (0.04, 0.03, 0.02), (1.0, 0.5, 0.2), 0.012, 0.2, 1.4),
+    "soft_body": Material((60, 130, 260), (0.04, 0.03, 0.02), (1.0, 0.5, 0.2), 0.015, 0.2, 0.3),
     "rubber": Material((90, 240, 520), (0.04, 0.03, 0.02), (1.0, 0.6, 0.3), 0.006, 0.2, 1.0),
 }  # fmt: skip
-"""Every material in `sim.vocab.MATERIALS`."""
+"""Every material in `sim.vocab.MATERIALS`. A soft body (a person) yields and barely rings: its gain is a
+fraction of a rigid obstacle's, and its contact is long."""
+
+BUMPER_CONTACT_S = 0.006
+"""Contact time of the robot's rubber bumper at 1 m/s, s: in series with every struck material."""
+STRUCK_MASS: dict[str, float] = {"box": 4.0, "luggage": 14.0, "pedestrian": 70.0}
+"""Obstacles that give way when hit and their mass, kg (free bodies, and a person who steps back); the
+others are fixed. The reduced mass with the robot's bounds what a hit can exchange (`impact_impulse`)."""
 
 ROBOT_BODY = Material((230, 640, 1450, 2900), (0.1, 0.08, 0.05, 0.04), (0.5, 1.0, 0.7, 0.35), 0.002, 0.0, 0.5)
 """The robot's own chassis, excited by every hit (collisions and benign bumps alike)."""
 
-IMPACT_SCALE = 0.28
+IMPACT_SCALE = 3.5
 """Modal amplitude per N s of impact impulse, relative to the nominal per-wheel rolling level.
 
-One scale for collisions and benign transients alike: the robot's chassis and the struck surface ring
-in proportion to the momentum the hit exchanges (linear acoustics), so a 20 kg robot meeting a wall at
-0.7 m/s (14 N s) sounds about 17 dB louder than a wheel climbing a cable at 1 m/s (about 2 N s, see
-`transients.strike_impulse`).
+One scale for collisions, benign transients and impulsive wheel faults alike: the robot's chassis and the
+struck surface ring in proportion to the momentum the hit exchanges (linear acoustics). The resulting
+levels at the microphones are in the module docstring.
 """
 ELASTIC_LIMIT = 2.0
 """Most momentum a hit can exchange, in units of reduced mass x approach speed (a fully elastic bounce)."""
@@ -94,6 +110,13 @@ def contact_time(material: Material, normal_speed: float) -> float:
     return float(np.clip(material.contact_s * v ** (-0.2), 2e-4, 0.03))
 
 
+def collision_contact_time(material: Material, normal_speed: float) -> float:
+    """Contact time of the robot's bumper against `material`: the two compliances in series, s."""
+    v = max(abs(float(normal_speed)), 0.02)
+    bumper = BUMPER_CONTACT_S * v ** (-0.2)
+    return float(np.clip(np.hypot(bumper, contact_time(material, normal_speed)), 2e-4, 0.03))
+
+
 def pulse_spectrum(freqs: np.ndarray, tau: float) -> np.ndarray:
     """Smoothed magnitude spectrum of a unit-area half-sine pulse of length tau (1 at DC)."""
     return 1.0 / np.sqrt(1.0 + (1.6 * np.asarray(freqs) * tau) ** 4)
@@ -107,9 +130,13 @@ def struck_response(
     rng: np.random.Generator,
     scale: float,
     body_gain: float = 1.0,
+    tau: float | None = None,
 ) -> np.ndarray:
-    """Mono response of `material` (and the robot body) to one hit, starting at sample 0."""
-    tau = contact_time(material, normal_speed)
+    """Mono response of `material` (and the robot body) to one hit, starting at sample 0.
+
+    `tau` is the contact time (default: `material`'s own, `contact_time`).
+    """
+    tau = contact_time(material, normal_speed) if tau is None else float(tau)
     banks = [material, ROBOT_BODY] if body_gain > 0 else [material]
     freqs = np.concatenate([np.asarray(b.freqs) for b in banks])
     t60 = np.concatenate([np.asarray(b.t60) for b in banks])
@@ -141,7 +168,10 @@ def impact(
     `impulse` is the impulsive part of the contact (`impact_impulse`), N s; the amplitude is linear in it.
     """
     material = MATERIALS[material_name]
-    return struck_response(material, impulse, normal_speed, sample_rate, rng, IMPACT_SCALE * material.gain)
+    tau = collision_contact_time(material, normal_speed)
+    return struck_response(
+        material, impulse, normal_speed, sample_rate, rng, IMPACT_SCALE * material.gain, tau=tau
+    )
 
 
 def scrape(

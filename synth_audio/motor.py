@@ -3,6 +3,10 @@
 Every tone is a harmonic of the motor shaft phase (wheel phase x gear ratio), so it is phase-continuous and
 tracks the wheel speed; amplitudes follow the wheel speed and the motor load (torque). All tones that stay
 below Nyquist are read from one wavetable of the shaft phase (cost independent of the harmonic count).
+
+The PWM whine follows the drivers' current, which is the load, but never falls below the holding current
+of a powered driver (`HOLD_LOAD` of the reference load): a stopped robot still whines faintly, the whine
+envelope being `_PWM_LEVEL * max(load, HOLD_LOAD)` for the whole episode (a trace is of a powered robot).
 """
 
 from __future__ import annotations
@@ -16,9 +20,13 @@ _SHAFT = ((1, 0.18), (2, 0.28), (3, 0.1))
 """(harmonic of the shaft, weight): mechanical unbalance and misalignment."""
 _ELECTRICAL = ((2, 0.55), (4, 0.22), (6, 0.1))
 """(multiple of the electrical frequency, weight): torque ripple / cogging."""
-_MESH = ((1, 0.45), (2, 0.2), (3, 0.08))
+MESH_WEIGHT = 0.45
+"""Amplitude of the healthy gear-mesh tone (first harmonic) relative to the motor's tone envelope."""
+_MESH = ((1, MESH_WEIGHT), (2, 0.2), (3, 0.08))
 """(multiple of the gear-mesh frequency, weight)."""
 _PWM_LEVEL = 0.07
+HOLD_LOAD = 0.2
+"""Holding current of a powered motor driver at standstill, as a fraction of the reference load."""
 _BRUSH_LEVEL = 0.12
 _NYQUIST_FRACTION = 0.45
 
@@ -75,9 +83,9 @@ def motor_wheel(
     ]
     tone_env = speed * (0.7 + 0.3 * load)
     brush_env = _BRUSH_LEVEL * speed
-    pwm = carrier is not None and bool(np.any(drive.torque[wheel] != 0))
+    pwm = carrier is not None  # the drivers switch whenever the robot is powered
     sidebands = robot.pwm_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
-    pwm_env = _PWM_LEVEL * load
+    pwm_env = _PWM_LEVEL * np.maximum(load, HOLD_LOAD)
     # Modulations as functions of the shaft phase, read with the same table index as the tones:
     # brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution); the PWM sidebands
     # sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution).

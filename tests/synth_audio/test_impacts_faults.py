@@ -12,6 +12,7 @@ from signal_oracles import envelope_spectrum
 from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import FaultRecord
 from synth_audio import AudioConfig, render
+from synth_audio.faults import BEARING_SLIP
 from synth_audio.impacts import impact_impulse
 from synth_audio.transients import strike_impulse
 
@@ -45,12 +46,12 @@ def _fault_audio(
 ) -> np.ndarray:
     fault = FaultRecord(kind, 1, 1.0, 0.0, 10.0, order, 2500.0, 0.03)
     trace = make_trace(3.0, omega, faults=(fault,), surface="carpet")
-    return render(trace, quiet, seed=5).samples[:, 1].astype(np.float64)
+    return render(trace, quiet, seed=5).stems["faults"][:, 1].astype(np.float64)
 
 
 def test_bearing_envelope_spectrum_peaks_at_the_defect_frequency(quiet: AudioConfig) -> None:
     omega, order = 20.0, 3.57
-    defect = order * omega / (2 * np.pi)
+    defect = order * omega / (2 * np.pi) * (1.0 - np.mean(BEARING_SLIP))  # the balls slip 1-2 %
     freqs, mag = envelope_spectrum(_fault_audio("bearing", order, omega, quiet), SR, (2000.0, 3000.0))
     band = (freqs > 2.0) & (freqs < 1.6 * defect)
     assert abs(freqs[band][np.argmax(mag[band])] - defect) < 0.4
@@ -74,7 +75,7 @@ def test_fault_sound_scales_with_severity(kind: str, quiet: AudioConfig) -> None
     quiet_level, mid, loud = level(0.0), level(0.3), level(1.0)
     assert quiet_level == 0.0
     assert 0.0 < mid < loud
-    assert 20 * np.log10(loud / mid) > 6.0
+    assert 20 * np.log10(loud / mid) > 4.0  # impulse laws grow as sqrt(severity) (flat, play) or faster
 
 
 def test_a_soft_slow_contact_longer_than_the_modal_ring_renders() -> None:

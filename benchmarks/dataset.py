@@ -40,8 +40,12 @@ from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
 from sim import vocab
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
-DATASET_FORMAT_VERSION = 1
-"""Version of the dataset layout (manifest, window table, episode folders)."""
+DATASET_FORMAT_VERSION = 2
+"""Version of the dataset layout (manifest, window table, episode folders).
+
+2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
+training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal_test_duration_s`).
+"""
 
 WINDOW_COLUMNS: tuple[str, ...] = (
     "window_id",
@@ -79,7 +83,7 @@ class EpisodeSpec:
     unit_id: int
     """Robot unit."""
     snr_db: float
-    """Mix SNR, dB."""
+    """Mix SNR, dB (drawn uniformly from the preset's `snr_db` range)."""
     duration_s: float
     """Length, s."""
     environment: str | None
@@ -152,7 +156,7 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
                 split=split,
                 seed=_episode_seed(seed, index),
                 unit_id=int(units[index % len(units)]),
-                snr_db=float(rng.choice(preset.snr_db)),
+                snr_db=float(rng.uniform(*preset.snr_db)),
                 duration_s=duration,
                 environment=kw.get("environment"),  # type: ignore[arg-type]
                 obstacle_kind=kw.get("obstacle_kind"),  # type: ignore[arg-type]
@@ -165,15 +169,18 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
         )
 
     # Nominal sequences take the floors in turn, so training and testing both cover every surface
-    # (one surface per sequence: drawn at random, six test sequences left test normals on three).
+    # (one surface per sequence: drawn at random, six test sequences left test normals on three). Units
+    # cycle with the episode index and SNR and arena are drawn per episode, so many short test sequences
+    # cover floors x SNR x unit x arena.
     floors = nominal_floors()
+    train_s, test_s = preset.nominal_train_duration_s, preset.nominal_test_duration_s
     for i in range(preset.nominal_train):
         split = "val" if i >= preset.nominal_train - preset.nominal_val else "train"
         env, floor = floors[i % len(floors)]
-        add("nominal", split, preset.train_units, preset.nominal_duration_s, environment=env, surface=floor)
+        add("nominal", split, preset.train_units, train_s, environment=env, surface=floor)
     for i in range(preset.nominal_test):
         env, floor = floors[i % len(floors)]
-        add("nominal", "test", preset.test_units, preset.nominal_duration_s, environment=env, surface=floor)
+        add("nominal", "test", preset.test_units, test_s, environment=env, surface=floor)
     for kind in preset.obstacle_kinds:
         for _ in range(preset.collisions_per_kind):
             add("collision", "test", preset.test_units, preset.collision_duration_s, obstacle_kind=kind)
@@ -273,9 +280,9 @@ def _window_rows(
 ) -> tuple[list[WindowRow], list[DroppedWindow]]:
     """The window table, and the nominal-episode windows left out because they are not normal.
 
-    Nominal routes avoid obstacles, but a long route can still graze one (the paper preset, seed 0, has a
-    curb and a wall touched in the last seconds of two 343 s sequences); the simulator labels such a window a
-    collision, and it must not enter nominal training or testing.
+    Nominal routes avoid obstacles, but a long route can still graze one (the format-1 paper preset, seed 0,
+    had a curb and a wall touched in the last seconds of two 343 s sequences); the simulator labels such a
+    window a collision, and it must not enter nominal training or testing.
     """
     rows: list[WindowRow] = []
     dropped: list[DroppedWindow] = []
@@ -473,7 +480,8 @@ def open_dataset(path: Path, verify: bool = True) -> Dataset:
     version = manifest.get("format_version")
     if version != DATASET_FORMAT_VERSION:
         raise DatasetError(
-            f"{manifest_path}: dataset format_version {version}, this software reads {DATASET_FORMAT_VERSION}"
+            f"{manifest_path}: dataset format_version {version}, this software reads format_version "
+            f"{DATASET_FORMAT_VERSION} only; generate the dataset again with `msvdd-bench generate`"
         )
     if verify:
         verify_dataset(path, manifest)

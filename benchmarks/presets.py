@@ -20,10 +20,12 @@ class Preset:
     """Nominal sequences used for training."""
     nominal_val: int
     """Of the training sequences, how many are held out as nominal validation (model selection only)."""
+    nominal_train_duration_s: float
+    """Length of each training (and validation) nominal sequence, s."""
     nominal_test: int
-    """Nominal sequences used for testing."""
-    nominal_duration_s: float
-    """Length of each nominal sequence, s."""
+    """Nominal sequences used for testing (many short ones: each is one cluster of the bootstrap)."""
+    nominal_test_duration_s: float
+    """Length of each test nominal sequence, s."""
     collisions_per_kind: int
     """Collision episodes per obstacle kind (test only)."""
     collision_duration_s: float
@@ -34,8 +36,8 @@ class Preset:
     """Length of each fault episode, s."""
     severity: tuple[float, float]
     """Range fault severities are drawn from, 0..1."""
-    snr_db: tuple[float, ...]
-    """Robot-to-environment SNRs the episodes are mixed at, dB (drawn per episode)."""
+    snr_db: tuple[float, float]
+    """(low, high) robot-to-environment SNR range, dB: each episode of every split draws its SNR uniformly."""
     transient_density: float
     """Benign transients per metre relative to the default (1.0)."""
     train_units: tuple[int, ...]
@@ -58,6 +60,14 @@ class Preset:
     """Obstacle kinds generated."""
     wheels: tuple[int, ...] = (0, 1, 2, 3)
     """Wheels faults are injected on."""
+
+    def __post_init__(self) -> None:
+        """Refuse an SNR range that is not (low, high) with low <= high."""
+        if len(self.snr_db) != 2 or not self.snr_db[0] <= self.snr_db[1]:
+            raise ValueError(
+                f"preset {self.name!r}: snr_db must be a (low, high) range in dB with low <= high, "
+                f"got {self.snr_db}"
+            )
 
 
 QUICK_METHODS: tuple[str, ...] = (
@@ -111,14 +121,15 @@ _PRESETS: dict[str, Preset] = {
         description="seconds: a handful of short episodes, for tests",
         nominal_train=3,
         nominal_val=1,
-        nominal_test=1,
-        nominal_duration_s=20.0,
+        nominal_train_duration_s=20.0,
+        nominal_test=2,
+        nominal_test_duration_s=10.0,
         collisions_per_kind=1,
         collision_duration_s=14.0,
         faults_per_kind_wheel=1,
         fault_duration_s=12.0,
         severity=(0.6, 1.0),
-        snr_db=(6.0,),
+        snr_db=(6.0, 6.0),
         transient_density=1.0,
         train_units=(0, 1),
         test_units=(0, 1),
@@ -136,14 +147,15 @@ _PRESETS: dict[str, Preset] = {
         description="the default: a few minutes on 2 cores (what `make demo` runs)",
         nominal_train=6,
         nominal_val=1,
-        nominal_test=2,
-        nominal_duration_s=90.0,
+        nominal_train_duration_s=90.0,
+        nominal_test=6,
+        nominal_test_duration_s=30.0,
         collisions_per_kind=2,
         collision_duration_s=14.0,
         faults_per_kind_wheel=1,
         fault_duration_s=16.0,
         severity=(0.4, 1.0),
-        snr_db=(6.0, 0.0),
+        snr_db=(0.0, 12.0),
         transient_density=1.0,
         train_units=(0, 1, 2),
         test_units=(0, 1, 2),
@@ -156,18 +168,20 @@ _PRESETS: dict[str, Preset] = {
     ),
     "paper": Preset(
         name="paper",
-        description="the paper's size: ~2 h nominal in 21 sequences (15 train, 6 test), ~280 collision "
-        "and ~510 fault windows (25 collisions per obstacle kind, 40 fault episodes of 37 s)",
-        nominal_train=15,
-        nominal_val=2,
-        nominal_test=6,
-        nominal_duration_s=343.0,
+        description="the paper's size in many short episodes (statistical power): ~2.3 h nominal, 48 "
+        "training sequences of 120 s (6 validation) and 42 test ones of 60 s (6 per floor); 25 collisions "
+        "of 24 s per obstacle kind, 3 faults of 40 s per fault kind and wheel; SNR 0-12 dB",
+        nominal_train=48,
+        nominal_val=6,
+        nominal_train_duration_s=120.0,
+        nominal_test=42,
+        nominal_test_duration_s=60.0,
         collisions_per_kind=25,
-        collision_duration_s=16.0,
-        faults_per_kind_wheel=2,
-        fault_duration_s=37.0,
+        collision_duration_s=24.0,
+        faults_per_kind_wheel=3,
+        fault_duration_s=40.0,
         severity=(0.3, 1.0),
-        snr_db=(6.0, 0.0),
+        snr_db=(0.0, 12.0),
         transient_density=1.0,
         train_units=(0, 1, 2, 3),
         test_units=(0, 1, 2, 3),
@@ -199,10 +213,10 @@ def expand_methods(names: list[str], registered: list[str]) -> list[str]:
 _PRESETS["hard"] = dataclasses.replace(
     _PRESETS["paper"],
     name="hard",
-    description="the paper's size with low-severity faults, -6 dB SNR, twice the benign transients, "
+    description="the paper's size with low-severity faults, SNR -6 to 3 dB, twice the benign transients, "
     "robot units unseen in training",
     severity=(0.05, 0.35),
-    snr_db=(-6.0,),
+    snr_db=(-6.0, 3.0),
     transient_density=2.0,
     train_units=(0, 1, 2),
     test_units=(3, 4),

@@ -1,4 +1,8 @@
-"""Outputs of a run: `results.json`, `scores.csv`, `results.md` (tables shaped like the paper's), ROC PNGs."""
+"""Outputs of a run: `results.json`, `scores.csv`, `results.md` (tables shaped like the paper's), ROC PNGs.
+
+Every AUC comes with its episode-cluster bootstrap 95 % interval (`benchmarks.uncertainty`), and every method
+with its paired AUC difference against M-SVDD on the same episode draws.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +10,7 @@ import csv
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +20,15 @@ from benchmarks import methods
 from benchmarks.dataset import WindowRow
 from benchmarks.metrics import MethodMetrics, aggregate, roc_curve
 from benchmarks.pipeline import MethodScores
+from benchmarks.uncertainty import (
+    BOOTSTRAP_REPLICATES,
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    MIN_EPISODES_PER_CLASS,
+    Interval,
+    bootstrap_mean_auc,
+    episode_draws,
+)
 
 COMPARISON: tuple[tuple[str, str], ...] = (
     ("iforest", "IF"),
@@ -56,6 +69,86 @@ NAIVE: tuple[tuple[str, str], ...] = (("audio-rms", "audio RMS"), ("imu-kurtosis
 TOO_EASY_AUC = 0.9
 """A naive baseline at or above this AUC means the benchmark is too easy, and the report says so."""
 
+REFERENCE_METHOD = "msvdd"
+"""The method every other one is compared with (paired AUC difference), when it is in the run."""
+
+
+@dataclass(frozen=True)
+class MethodIntervals:
+    """One method's AUCs with their intervals, and its paired differences against the reference method."""
+
+    auc: dict[str, Interval]
+    """By key (`auc`, `auc_collision`, `auc_mechanical`, `auc_<sub-kind>`): the seed-mean AUC and interval."""
+    vs_reference: dict[str, Interval] = field(default_factory=dict)
+    """The same keys: this method's AUC minus the reference's, same draws (empty without the reference)."""
+
+
+@dataclass(frozen=True)
+class RunIntervals:
+    """The episode-cluster bootstrap intervals of a run."""
+
+    methods: dict[str, MethodIntervals]
+    """By method name."""
+    reference: str | None
+    """The method of the paired differences (None when it was not run)."""
+    normal_episodes: int
+    """Test episodes with normal windows (the normal clusters)."""
+    anomalous_episodes: int
+    """Test episodes with anomalous windows (the anomalous clusters)."""
+    replicates: int
+    """Bootstrap replicates."""
+    seed: int
+    """Seed of the episode draws."""
+
+
+def auc_intervals(
+    rows: Sequence[WindowRow],
+    scores: Sequence[MethodScores],
+    reference: str = REFERENCE_METHOD,
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> RunIntervals:
+    """Every method's AUCs (overall, collision, mechanical, per sub-kind) with episode-cluster intervals.
+
+    The clusters are the test windows' episodes. Each AUC subset (every normal window against one group of
+    anomalous windows) gets one set of episode draws, applied to every seed of every method: a method's AUC
+    is the mean over its seeds, in the data and inside each replicate, and its difference against
+    `reference` is taken replicate by replicate (exactly 0 for the reference itself).
+    """
+    kinds = np.array([r.kind for r in rows]).astype(str)
+    sub_kinds = np.array([r.sub_kind for r in rows]).astype(str)
+    episodes = np.array([r.episode for r in rows]).astype(str)
+    normal = kinds == "normal"
+    by_method: dict[str, list[np.ndarray]] = {}
+    for ms in scores:
+        by_method.setdefault(ms.method, []).append(np.asarray(ms.scores, dtype=np.float64))
+    subsets = {
+        "auc": np.ones(kinds.size, dtype=bool),
+        "auc_collision": normal | (kinds == "collision"),
+        "auc_mechanical": normal | (kinds == "mechanical"),
+    }
+    for sub in sorted(set(sub_kinds[~normal])):
+        subsets[f"auc_{sub}"] = normal | (sub_kinds == sub)
+    auc: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
+    diff: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
+    for key, keep in subsets.items():
+        positive = ~normal[keep]
+        weights = episode_draws(episodes[keep], positive, replicates, seed)
+        boot = {m: bootstrap_mean_auc(np.stack([s[keep] for s in runs]), positive, episodes[keep], weights)
+                for m, runs in by_method.items()}  # fmt: skip
+        for m, b in boot.items():
+            auc[m][key] = b.interval()
+            if reference in boot:
+                diff[m][key] = b.minus(boot[reference])
+    return RunIntervals(
+        methods={m: MethodIntervals(auc[m], diff[m]) for m in by_method},
+        reference=reference if reference in by_method else None,
+        normal_episodes=len(set(episodes[normal])),
+        anomalous_episodes=len(set(episodes[~normal])),
+        replicates=replicates,
+        seed=seed,
+    )
+
 
 @dataclass(frozen=True)
 class RunInfo:
@@ -87,6 +180,43 @@ def _fmt(mean: float, std: float, pct: bool = True, with_std: bool = True) -> st
     return text
 
 
+def _fmt_interval(iv: Interval, signed: bool = False) -> str:
+    """`84.0 [81.2, 86.5]` in percent (`+1.2 [-0.5, +3.0]` signed); `[n/a]` for an undefined interval."""
+    if not math.isfinite(iv.value):
+        return "n/a"
+    pattern = "{:+.1f}" if signed else "{:.1f}"
+    text = pattern.format(100.0 * iv.value)
+    if math.isfinite(iv.low) and math.isfinite(iv.high):
+        return text + f" [{pattern.format(100.0 * iv.low)}, {pattern.format(100.0 * iv.high)}]"
+    return text + " [n/a]"
+
+
+def _excludes_zero(iv: Interval) -> bool | None:
+    """Whether the interval lies wholly above or below zero (None when it is undefined)."""
+    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
+        return None
+    return iv.excludes(0.0)
+
+
+def _diff_cells(intervals: RunIntervals, method: str, key: str) -> list[str]:
+    """The paired-difference cell and its excludes-zero cell of one method and AUC key."""
+    if method == intervals.reference:
+        return ["reference", "-"]
+    found = intervals.methods.get(method)
+    iv = found.vs_reference.get(key) if found is not None else None
+    if iv is None:
+        return ["n/a", "n/a"]
+    excludes = _excludes_zero(iv)
+    return [_fmt_interval(iv, signed=True), "n/a" if excludes is None else ("yes" if excludes else "no")]
+
+
+def _auc_cell(intervals: RunIntervals | None, method: str, key: str) -> str | None:
+    """An AUC cell with its interval, or None when the run has no interval for it."""
+    found = intervals.methods.get(method) if intervals is not None else None
+    iv = found.auc.get(key) if found is not None else None
+    return None if iv is None else _fmt_interval(iv)
+
+
 def _resolve(name: str, available: Mapping[str, object]) -> list[str]:
     """A table row's method(s): the name itself, or its early and late fusion variants."""
     if name in available:
@@ -98,15 +228,42 @@ def _table(
     rows: Sequence[tuple[str, str]],
     per_method: Mapping[str, Sequence[MethodMetrics]],
     columns: Sequence[tuple[str, str, bool]],
+    intervals: RunIntervals | None = None,
 ) -> list[str]:
-    lines = ["| Method | " + " | ".join(c[1] for c in columns) + " |"]
-    lines.append("|---|" + "---|" * len(columns))
+    with_diff = intervals is not None and intervals.reference is not None
+    headers = [c[1] for c in columns] + (list(_DIFF_HEADERS) if with_diff else [])
+    lines = ["| Method | " + " | ".join(headers) + " |"]
+    lines.append("|---|" + "---|" * len(headers))
     for name, label in rows:
         for method in _resolve(name, per_method):
             agg = aggregate(per_method[method])
             shown = label if method == name else f"{label} ({method.rsplit('-', 1)[1]} fusion)"
-            cells = [_fmt(*agg.get(key, (math.nan, 0.0)), pct=pct) for key, _, pct in columns]
+            cells = [
+                _auc_cell(intervals, method, key) or _fmt(*agg.get(key, (math.nan, 0.0)), pct=pct)
+                for key, _, pct in columns
+            ]
+            if with_diff:
+                assert intervals is not None
+                cells += _diff_cells(intervals, method, "auc")
             lines.append(f"| {shown} | " + " | ".join(cells) + " |")
+    return lines
+
+
+_DIFF_HEADERS: tuple[str, str] = ("ΔAUC vs M-SVDD (%)", "Δ interval excludes 0")
+"""Headers of the paired-difference columns every table gets when M-SVDD is in the run."""
+
+
+def _difference_table(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals
+) -> list[str]:
+    """Every method's paired AUC differences against the reference: overall, collisions, faults."""
+    keys = (("auc", "ΔAUC"), ("auc_collision", "ΔAUC coll"), ("auc_mechanical", "ΔAUC mech"))
+    headers = [h for _, label in keys for h in (f"{label} (%)", "excludes 0")]
+    lines = ["| Method | " + " | ".join(headers) + " |", "|---|" + "---|" * len(headers)]
+    for method in per_method:
+        if method != intervals.reference:
+            cells = [c for key, _ in keys for c in _diff_cells(intervals, method, key)]
+            lines.append(f"| {method} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -147,11 +304,48 @@ def naive_verdict(per_method: Mapping[str, Sequence[MethodMetrics]]) -> str:
     )
 
 
-def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -> str:
-    """`results.md`: the paper's tables from this run's data."""
+def _interval_notes(intervals: RunIntervals | None, n_seeds: int) -> list[str]:
+    """The header lines that say what the cells and intervals mean."""
+    if intervals is None:
+        return [f"- Training seeds per method: {n_seeds} (mean ± std over seeds)"]
+    lines = [
+        f"- Training seeds per method: {n_seeds}. AUC cells are the mean over seeds with its "
+        f"{100 * CONFIDENCE:.0f} % interval, `84.0 [81.2, 86.5]`; other cells are mean ± std over seeds.",
+        f"- Intervals: episode-cluster bootstrap ({intervals.replicates} replicates resampling whole test "
+        f"episodes, {intervals.normal_episodes} normal and {intervals.anomalous_episodes} anomalous, each "
+        "class separately; the same draws for every seed and every method; `benchmarks.uncertainty`)."
+        f" `[n/a]`: fewer than {MIN_EPISODES_PER_CLASS} normal or anomalous episodes, so no interval.",
+    ]
+    if intervals.reference is not None:
+        lines += [
+            "- ΔAUC vs M-SVDD: the method's AUC minus M-SVDD's on the same episode draws, with its interval;"
+            " *excludes 0* says whether that interval lies wholly on one side of zero.",
+            "  **A difference inside the interval is not a ranking**: when the interval of a difference"
+            " contains zero, this test set does not tell the two methods apart, whatever their AUCs.",
+        ]
+    else:
+        lines.append(
+            "  A difference between two AUCs that lies inside their intervals is not a ranking"
+            " (M-SVDD was not run, so no paired differences are given)."
+        )
+    return lines
+
+
+def markdown(
+    info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
+) -> str:
+    """`results.md`: the paper's tables from this run's data (AUCs with intervals when given)."""
     any_runs = next(iter(per_method.values()))
     first = any_runs[0]
     n_seeds = max(len(v) for v in per_method.values())
+    differences: list[str] = []
+    if intervals is not None and intervals.reference is not None:
+        differences = [
+            "## Paired AUC differences against M-SVDD (every method of the run)",
+            "",
+            *_difference_table(per_method, intervals),
+            "",
+        ]
     out = [
         f"# Results: preset `{info.preset}`, dataset seed {info.dataset_seed}",
         "",
@@ -159,7 +353,7 @@ def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -
         f"- Date: {info.date}; machine: {info.machine}",
         f"- Test windows: {first.n_normal} normal, {first.n_collision} collision, "
         f"{first.n_mechanical} mechanical",
-        f"- Training seeds per method: {n_seeds} (mean ± std over seeds)",
+        *_interval_notes(intervals, n_seeds),
         "- Precision, recall and F1 use each method's threshold from its training scores only"
         " (95th percentile).",
         "  **F1 oracle** is the best F1 over the test precision-recall curve, the paper's protocol:"
@@ -167,29 +361,30 @@ def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -
         "",
         "## Comparison (paper Table I)",
         "",
-        *_table(COMPARISON, per_method, _MAIN_COLUMNS),
+        *_table(COMPARISON, per_method, _MAIN_COLUMNS, intervals),
         "",
         "## Module ablation (paper Table II)",
         "",
-        *_table(MODULE_ABLATION, per_method, _SHORT_COLUMNS),
+        *_table(MODULE_ABLATION, per_method, _SHORT_COLUMNS, intervals),
         "",
         "## Fusion ablation (paper Table III)",
         "",
-        *_table(FUSION_ABLATION, per_method, _SHORT_COLUMNS),
+        *_table(FUSION_ABLATION, per_method, _SHORT_COLUMNS, intervals),
         "",
         "## Latent dimension s",
         "",
-        *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS),
+        *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS, intervals),
         "",
         "## Naive sanity baselines",
         "",
-        *_table(NAIVE, per_method, _MAIN_COLUMNS),
+        *_table(NAIVE, per_method, _MAIN_COLUMNS, intervals),
         "",
         naive_verdict(per_method),
         "",
+        *differences,
         "## AUC (%) by anomaly sub-kind (comparison methods; every method's are in results.json)",
         "",
-        *_sub_kind_table(per_method),
+        *_sub_kind_table(per_method, intervals),
         "",
         "## Fit time",
         "",
@@ -203,21 +398,32 @@ def markdown(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -
     return "\n".join(out)
 
 
-def _sub_kind_table(per_method: Mapping[str, Sequence[MethodMetrics]]) -> list[str]:
+def _sub_kind_table(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
+) -> list[str]:
     """Rows per anomaly sub-kind, columns for the comparison and naive methods (ablations stay in JSON)."""
     subs = sorted({s for runs in per_method.values() for r in runs for s in r.auc_by_sub_kind})
     names = [m for name, _ in (*COMPARISON, *NAIVE) for m in _resolve(name, per_method)]
     lines = ["| Sub-kind | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for sub in subs:
         cells = [
-            _fmt(*aggregate(per_method[n]).get(f"auc_{sub}", (math.nan, 0.0)), with_std=False) for n in names
+            _auc_cell(intervals, n, f"auc_{sub}")
+            or _fmt(*aggregate(per_method[n]).get(f"auc_{sub}", (math.nan, 0.0)), with_std=False)
+            for n in names
         ]
         lines.append(f"| {sub} | " + " | ".join(cells) + " |")
     return lines
 
 
-def results_json(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]]) -> dict[str, Any]:
-    """`results.json`: every metric of every method (mean, std and per seed)."""
+def results_json(
+    info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
+) -> dict[str, Any]:
+    """`results.json`: every metric of every method (mean, std and per seed), AUC intervals if given.
+
+    With `intervals`, each method gets `auc_ci95` (per AUC key: value, low, high) and
+    `auc_diff_vs_reference` (the same keys: paired difference against `uncertainty.reference`, with
+    `excludes_zero`).
+    """
     doc: dict[str, Any] = {
         "preset": info.preset,
         "seed": info.dataset_seed,
@@ -236,7 +442,27 @@ def results_json(info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]
         entry["family"] = methods.spec(name).family
         entry["per_seed"] = [r.to_dict() for r in runs]
         entry["train_seconds"] = info.train_seconds.get(name)
+        found = intervals.methods.get(name) if intervals is not None else None
+        if found is not None:
+            entry["auc_ci95"] = {k: iv.to_dict() for k, iv in found.auc.items()}
+            entry["auc_diff_vs_reference"] = {
+                k: {**iv.to_dict(), "excludes_zero": _excludes_zero(iv)}
+                for k, iv in found.vs_reference.items()
+            }
         doc["methods"][name] = entry
+    if intervals is not None:
+        doc["uncertainty"] = {
+            "method": "episode-cluster bootstrap: whole test episodes resampled with replacement, normal and "
+            "anomalous separately; the same draws for every seed and method; a seed-mean AUC is averaged "
+            "over seeds inside each replicate",
+            "confidence": CONFIDENCE,
+            "replicates": intervals.replicates,
+            "seed": intervals.seed,
+            "normal_episodes": intervals.normal_episodes,
+            "anomalous_episodes": intervals.anomalous_episodes,
+            "reference": intervals.reference,
+            "note": "a difference whose interval contains zero is not a ranking",
+        }
     doc["naive_verdict"] = naive_verdict(per_method)
     return doc
 
@@ -318,7 +544,9 @@ def write_report(
 ) -> None:
     """Write every output of a run into `directory`."""
     directory.mkdir(parents=True, exist_ok=True)
-    (directory / "results.json").write_text(json.dumps(results_json(info, per_method), indent=2) + "\n")
+    intervals = auc_intervals(rows, scores)
+    doc = results_json(info, per_method, intervals)
+    (directory / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
     write_scores_csv(directory / "scores.csv", rows, scores)
-    (directory / "results.md").write_text(markdown(info, per_method))
+    (directory / "results.md").write_text(markdown(info, per_method, intervals))
     write_roc_figures(directory / "figures", rows, scores)

@@ -22,6 +22,9 @@ BOOTSTRAP_SEED = 20261130
 """Seed of the episode draws: the same scores always give the same interval."""
 CONFIDENCE = 0.95
 """Coverage of every interval."""
+MIN_EPISODES_PER_CLASS = 2
+"""A seed-mean interval needs this many normal and anomalous episodes; one episode cannot be resampled into
+variety, so with fewer the interval is undefined (NaN) rather than a misleading point."""
 
 
 @dataclass(frozen=True)
@@ -163,6 +166,118 @@ def paired_auc_difference(
     value = float(weighted_auc(a, pos, ones) - weighted_auc(b, pos, ones))
     weights = episode_draws(np.asarray(clusters), pos, replicates, seed)
     return _interval(value, weighted_auc(a, pos, weights) - weighted_auc(b, pos, weights))
+
+
+def enough_episodes(
+    clusters: np.ndarray | Sequence[str],
+    positive: np.ndarray | Sequence[bool],
+    minimum: int = MIN_EPISODES_PER_CLASS,
+) -> bool:
+    """Whether the normal and the anomalous windows each come from at least `minimum` episodes."""
+    c = np.asarray(clusters).astype(str)
+    pos = np.asarray(positive, dtype=bool)
+    return len(set(c[~pos])) >= minimum and len(set(c[pos])) >= minimum
+
+
+@dataclass(frozen=True, eq=False)
+class BootstrapAuc:
+    """An AUC averaged over training seeds, on the data as it is and in every bootstrap replicate."""
+
+    value: float
+    """Mean over seeds of the AUC on the data as it is (NaN if a class is missing)."""
+    replicates: np.ndarray
+    """(B,) mean over seeds of the AUC in each replicate; every seed is weighted by the same episode draws."""
+    defined: bool = True
+    """False when a class has fewer than `MIN_EPISODES_PER_CLASS` episodes: the intervals are then NaN."""
+
+    def interval(self) -> Interval:
+        """The estimate with its percentile interval."""
+        if not self.defined:
+            return Interval(self.value, math.nan, math.nan)
+        return _interval(self.value, self.replicates)
+
+    def minus(self, other: BootstrapAuc) -> Interval:
+        """Paired difference self - other, replicate by replicate (both must come from the same draws)."""
+        if self.replicates.shape != other.replicates.shape:
+            raise ValueError(
+                f"replicates {self.replicates.shape} and {other.replicates.shape} differ: not the same draws"
+            )
+        if not (self.defined and other.defined):
+            return Interval(self.value - other.value, math.nan, math.nan)
+        return _interval(self.value - other.value, self.replicates - other.replicates)
+
+
+def bootstrap_mean_auc(
+    scores: np.ndarray | Sequence[Sequence[float]],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    weights: np.ndarray,
+) -> BootstrapAuc:
+    """ROC-AUC averaged over training seeds, on the data and inside each replicate of `weights`.
+
+    Args:
+        scores: (S, n) scores of S training seeds on the same windows, or (n,) for one seed.
+        positive: (n,) bool, the anomalous windows.
+        clusters: (n,) episode of each window (the intervals are undefined with too few episodes).
+        weights: (B, n) window weights (`episode_draws` of these clusters), applied alike to every seed.
+
+    Returns:
+        The seed-mean AUC and its (B,) replicates (NaN throughout if a class is missing).
+    """
+    s = np.atleast_2d(np.asarray(scores, dtype=np.float64))
+    pos = np.asarray(positive, dtype=bool)
+    w = np.atleast_2d(np.asarray(weights, dtype=np.float64))
+    if s.ndim != 2 or s.shape[0] == 0 or s.shape[1] != pos.size or w.shape[1] != pos.size:
+        raise ValueError(f"scores {s.shape}, positive {pos.shape} and weights {w.shape} must match")
+    if np.shape(clusters) != pos.shape:
+        raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
+    if not pos.any() or pos.all():
+        return BootstrapAuc(math.nan, np.full(w.shape[0], math.nan), defined=False)
+    ones = np.ones(pos.size)
+    value = float(np.mean([weighted_auc(row, pos, ones) for row in s]))
+    replicates = np.mean([weighted_auc(row, pos, w) for row in s], axis=0)
+    return BootstrapAuc(value, replicates, defined=enough_episodes(clusters, pos))
+
+
+def mean_auc_interval(
+    scores: np.ndarray | Sequence[Sequence[float]],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
+    """Mean ROC-AUC over training seeds and its episode-cluster bootstrap 95 % interval.
+
+    Each replicate's episode draws weight every seed's (S, n) scores, and the per-seed AUCs are averaged
+    inside the replicate; with one seed this is `auc_interval`, except that the interval is NaN when a class
+    has fewer than `MIN_EPISODES_PER_CLASS` episodes.
+    """
+    pos = np.asarray(positive, dtype=bool)
+    if np.shape(clusters) != pos.shape:
+        raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
+    weights = episode_draws(np.asarray(clusters), pos, replicates, seed)
+    return bootstrap_mean_auc(scores, pos, clusters, weights).interval()
+
+
+def paired_mean_auc_difference(
+    scores_a: np.ndarray | Sequence[Sequence[float]],
+    scores_b: np.ndarray | Sequence[Sequence[float]],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    replicates: int = BOOTSTRAP_REPLICATES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
+    """Seed-mean AUC of a minus that of b ((S_a, n), (S_b, n) scores), the same draws for every seed of both.
+
+    With one seed each this is `paired_auc_difference` (but NaN with too few episodes, like
+    `mean_auc_interval`); a method against itself gives exactly 0 [0, 0].
+    """
+    pos = np.asarray(positive, dtype=bool)
+    if np.shape(clusters) != pos.shape:
+        raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
+    weights = episode_draws(np.asarray(clusters), pos, replicates, seed)
+    a = bootstrap_mean_auc(scores_a, pos, clusters, weights)
+    return a.minus(bootstrap_mean_auc(scores_b, pos, clusters, weights))
 
 
 def auc_per_normal_episode(

@@ -11,6 +11,8 @@ MIN_SAMPLE_RATE = 16000
 """Lowest sample rate rendered: motor, gear-mesh and impact content reaches several kHz."""
 MAX_SAMPLE_RATE = 96000
 """Highest sample rate rendered."""
+MAX_NEARFIELD_RATE_HZ = 2.0
+"""Highest near-field event rate, events/s (beyond it the room is a crowd, not near-field events)."""
 
 STEM_NAMES: tuple[str, ...] = (
     "motor",
@@ -18,13 +20,15 @@ STEM_NAMES: tuple[str, ...] = (
     "transients",
     "impacts",
     "faults",
+    "electronics",
     "room",
     "ambience",
+    "nearfield",
     "mic_noise",
 )
 """Per-source stems an `Audio` can carry; their sum is the mix before the output limiter."""
 
-ROBOT_STEMS: tuple[str, ...] = ("motor", "rolling", "transients", "impacts", "faults", "room")
+ROBOT_STEMS: tuple[str, ...] = ("motor", "rolling", "transients", "impacts", "faults", "electronics", "room")
 """Stems that are the robot's own sound (the `snr_db` signal); the rest is environment and microphone."""
 
 
@@ -50,7 +54,7 @@ class AudioConfig:
     snr_db: float = 6.0
     """Robot-to-environment ratio in dB: ambience RMS = robot unit's reference RMS / 10^(snr_db/20)."""
     ambience: bool = True
-    """Render the environment (indoor: HVAC, babble, doors, reverb; outdoor: wind, traffic, birds)."""
+    """Render the environment: ambience (HVAC, babble, doors / wind, traffic, birds) and near-field events."""
     rt60_s: float = 0.5
     """Reverberation time of the indoor room impulse response, s (0 disables reverberation)."""
     room_send_db: float = -18.0
@@ -79,6 +83,8 @@ class AudioConfig:
     """Mean rate of doors closing in other rooms (indoor), events per second."""
     bird_rate_hz: float = 0.3
     """Mean rate of bird calls (outdoor), calls per second."""
+    nearfield_rate_hz: float = 0.15
+    """Mean rate of near-field events (footsteps, voices, drops: `synth_audio.nearfield`), per s; 0: none."""
     speed_of_sound: float = 343.0
     """Speed of sound, m/s."""
     limiter: bool = True
@@ -123,6 +129,7 @@ class AudioConfig:
             "gain_faults_db": self.gain_faults_db,
             "door_rate_hz": self.door_rate_hz,
             "bird_rate_hz": self.bird_rate_hz,
+            "nearfield_rate_hz": self.nearfield_rate_hz,
             "speed_of_sound": self.speed_of_sound,
         }
         for name, value in finite.items():
@@ -145,6 +152,11 @@ class AudioConfig:
             raise AudioError(f"reference_speed {self.reference_speed} out of range; allowed: 0.05..5 m/s")
         if self.door_rate_hz < 0 or self.bird_rate_hz < 0:
             raise AudioError("door_rate_hz and bird_rate_hz must be >= 0")
+        if not 0.0 <= self.nearfield_rate_hz <= MAX_NEARFIELD_RATE_HZ:
+            raise AudioError(
+                f"nearfield_rate_hz {self.nearfield_rate_hz} out of range; "
+                f"allowed: 0..{MAX_NEARFIELD_RATE_HZ:g} events/s"
+            )
         if not 200.0 <= self.speed_of_sound <= 2000.0:
             raise AudioError(f"speed_of_sound {self.speed_of_sound} out of range; allowed: 200..2000 m/s")
         if not isinstance(self.muted, tuple) or any(m not in MUTABLE_SOURCES for m in self.muted):

@@ -5,7 +5,9 @@ Levels: the robot's sound is scaled so that its unit's reference drive (straight
 sound only) has RMS `reference_level_dbfs`; this
 fixed, per-unit reference is the "mean RMS of the unit" against which the environment is set to
 `snr_db` (as MIMII / ToyADMOS2 mix at a fixed level per machine, not per clip), so a loud collision never
-turns the background down.
+turns the background down. Near-field events (`synth_audio.nearfield`: footsteps, voices, drops, doors)
+have their own SPL at 1 m, independent of `snr_db`; the robot's cooling fan (`synth_audio.electronics`)
+is its own sound, `electronics.FAN_DB` re the reference drive.
 """
 
 from __future__ import annotations
@@ -15,22 +17,27 @@ from collections.abc import Callable
 
 import numpy as np
 
-from sim.scenario import OBSTACLE_MASS
 from sim.trace import RobotInfo, Trace
 from synth_audio import ambience as amb
+from synth_audio import nearfield as nf
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
 from synth_audio.drive import Drive, build_drive, reference_torque
 from synth_audio.dsp import add_at, bed_pool, noise_bed, rms, white
+from synth_audio.electronics import FAN_DB, fan_sound, unit_fan
 from synth_audio.faults import fault_sound
-from synth_audio.impacts import impact, impact_impulse, scrape
+from synth_audio.impacts import STRUCK_MASS, impact, impact_impulse, scrape
 from synth_audio.motor import motor_wheel, pwm_carrier
 from synth_audio.reverb import DECIMATION, Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel
-from synth_audio.spatial import mic_axes, point_gains, quat_to_matrix, spatialize_into
+from synth_audio.spatial import REF_DISTANCE, mic_axes, point_gains, quat_to_matrix, spatialize_into
 from synth_audio.transients import strike_impulse, transient
 from synth_audio.validate import check_seed, check_trace
 
-_STREAMS = ("motor", "rolling", "transients", "impacts", "faults", "ambience", "room", "mic_noise", "noise")
+_STREAMS = (
+    "motor", "rolling", "transients", "impacts", "faults", "ambience", "room", "mic_noise", "noise",
+    "nearfield", "electronics",
+)  # fmt: skip
+"""Generator streams; new ones are appended, so that every existing stream keeps its seed."""
 _REFERENCE_SURFACE = "concrete"
 _REFERENCE_SECONDS = 1.0
 _LIMIT_KNEE = 0.5
@@ -61,11 +68,13 @@ def _robot_buses(
     trace: Trace | None,
     merged: bool = False,
     muted: tuple[str, ...] = (),
+    fan_level: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Mono buses (W + 1, n) per robot source group; the last row is the chassis. Events need `trace`.
 
     With `merged`, every group accumulates into one bus array (same samples, no per-group copies); all
-    dictionary entries are then the same array. Groups in `muted` stay silent.
+    dictionary entries are then the same array. Groups in `muted` stay silent. With `trace`, the chassis
+    row of the `electronics` bus carries the unit's cooling fan at RMS `fan_level` (raw bus units).
     """
     robot = drive.robot
     w, n, sr = drive.n_wheels, drive.n, drive.sample_rate
@@ -110,6 +119,11 @@ def _robot_buses(
         strike = strike_impulse(tr.kind[i], speed, float(robot.wheel_radius[wheel]), corner_mass)
         sound = transient(tr.kind[i], strike, speed, sr, tr_rng)
         add_at(buses["transients"][wheel], round(t * sr), sound)
+    buses["electronics"] = bus()
+    if fan_level > 0:
+        fan = fan_sound(unit_fan(robot), n, sr, _rng(seed, "electronics"))
+        fan *= np.float32(fan_level)
+        buses["electronics"][w] += fan
     return buses
 
 
@@ -140,7 +154,7 @@ def _impacts(trace: Trace, sr: int, seed: int, speed_of_sound: float) -> np.ndar
         start = math.floor(t * sr)
         offset = t * sr - start
         hit = impact_impulse(
-            float(c.impulse[i]), float(c.normal_speed[i]), mass, OBSTACLE_MASS.get(c.obstacle_kind[i])
+            float(c.impulse[i]), float(c.normal_speed[i]), mass, STRUCK_MASS.get(c.obstacle_kind[i])
         )
         sound = impact(c.material[i], hit, float(c.normal_speed[i]), sr, rng)
         normal = np.asarray(c.normal[i], dtype=np.float64)
@@ -237,12 +251,16 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
         "rolling": config.gain_rolling_db,
         "transients": config.gain_transients_db,
         "faults": config.gain_faults_db,
+        "electronics": 0.0,
     }
     merged = not config.stems and all(g == 0.0 for g in gains_db.values())
-    buses = _robot_buses(drive, trace.surface, seed, trace, merged, config.muted)
     delays, gains = point_gains(
         _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
     )
+    # The fan's RMS at the mics is FAN_DB re the reference drive: raw level x chassis gain x scale.
+    chassis_gain = float(np.sqrt(np.mean(np.square(gains[-1]))))
+    fan_level = 10.0 ** (FAN_DB / 20.0) * reference_rms(robot, config) / max(chassis_gain, 1e-12)
+    buses = _robot_buses(drive, trace.surface, seed, trace, merged, config.muted, fan_level)
     stems: dict[str, np.ndarray] = {}
     if config.stems:
         for name, bus in buses.items():
@@ -265,14 +283,29 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     indoor = trace.environment == "indoor"
     reverb = indoor and config.rt60_s > 0
     room = Room(config.rt60_s, sr, n, _rng(seed, "room")) if reverb else None
+    room_gain = 10.0 ** (config.room_send_db / 20.0)
+    near = near_send = None
+    if config.ambience and config.nearfield_rate_hz > 0:
+        listener = nf.Listener(np.asarray(trace.time, dtype=np.float64), np.asarray(trace.mic_pos))
+        near, near_send = nf.render_nearfield(
+            listener, trace.environment, trace.surface, n, config, _rng(seed, "nearfield"), room is not None
+        )
+        near_send *= np.float32(room_gain / REF_DISTANCE)  # send per source power (see synth_audio.nearfield)
     room_spectrum = None
     if room is not None:
         dry = np.zeros(n, dtype=np.float32)
         for part in stems.values():
             dry += part[0]
             dry += part[1]
-        dry *= np.float32(0.5 * 10.0 ** (config.room_send_db / 20.0))
+        dry *= np.float32(0.5 * room_gain)
+        if near is not None and near_send is not None and near_send.size:
+            if config.stems:  # the near-field events' reverberation belongs to their own stem
+                near += room.apply(near_send)
+            else:  # one inverse FFT for every reverberation
+                dry += near_send
         room_spectrum = room.send_spectrum(dry)
+    if near is not None:
+        stems["nearfield"] = near
     if config.ambience:
         scene = amb.Scene(
             n, sr, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),

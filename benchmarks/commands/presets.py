@@ -22,6 +22,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{name:<6} {preset.description}")
         print(f"       {len(specs)} episodes, {seconds / 60:.1f} min of driving, methods at scale "
               f"{preset.method_scale!r}, seeds {list(preset.seeds)}")  # fmt: skip
+        low, high = preset.snr_db
+        n_test = sum(1 for s in specs if s.category == "nominal" and s.split == "test")
+        print(f"       SNR drawn uniformly in [{low:g}, {high:g}] dB per episode; {n_test} test nominal "
+              f"sequences of {preset.nominal_test_duration_s:g} s")  # fmt: skip
         if args.name:
             for key, value in preset.__dict__.items():
                 print(f"       {key} = {value!r}")

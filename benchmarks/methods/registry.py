@@ -15,8 +15,9 @@ from benchmarks.methods._io import ModelFileError, atomic_path, write_text_atomi
 from benchmarks.methods.base import check_scale
 from msvdd.contract import Detector
 
-FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "naive")
-"""Method families: M-SVDD and its ablations, deep baselines, shallow baselines, naive sanity baselines."""
+FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive")
+"""Method families: M-SVDD and its ablations, deep baselines, shallow baselines, the audit's reference
+detector (a Gaussian on fixed window statistics), naive sanity baselines."""
 
 MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu")
 """Which sensors a method reads."""

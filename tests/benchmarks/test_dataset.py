@@ -81,6 +81,24 @@ def test_missing_file_and_other_version_are_named(tiny_dataset: Path, tmp_path: 
         ds.open_dataset(copy)
 
 
+def test_a_format_1_dataset_is_refused_naming_both_versions(tiny_dataset: Path, tmp_path: Path) -> None:
+    assert ds.DATASET_FORMAT_VERSION == 2
+    copy = tmp_path / "old"
+    copy.mkdir()
+    manifest = json.loads((tiny_dataset / "manifest.json").read_text())
+    manifest["format_version"] = 1  # the layout before SNR ranges
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(ds.DatasetError, match=r"format_version 1, this software reads format_version 2"):
+        ds.open_dataset(copy, verify=False)
+
+
+def test_snr_of_every_episode_is_recorded_from_the_presets_range(tiny_dataset: Path) -> None:
+    manifest = ds.open_dataset(tiny_dataset, verify=False).manifest
+    low, high = manifest["preset"]["snr_db"]
+    assert all(low <= e["snr_db"] <= high for e in manifest["episodes"])
+    assert ds.open_dataset(tiny_dataset, verify=False).preset.snr_db == (low, high)
+
+
 def test_interrupted_generation_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     calls = {"n": 0}
     real = ds.build_episode

@@ -9,8 +9,11 @@ from sklearn.metrics import roc_auc_score
 from benchmarks.uncertainty import (
     auc_interval,
     auc_per_normal_episode,
+    bootstrap_mean_auc,
     episode_draws,
+    mean_auc_interval,
     paired_auc_difference,
+    paired_mean_auc_difference,
     weighted_auc,
 )
 
@@ -67,6 +70,47 @@ def test_paired_difference_of_a_method_with_itself_is_exactly_zero() -> None:
     assert same.value == same.low == same.high == 0.0
     better = paired_auc_difference(scores + 3.0 * positive, scores, positive, episodes)
     assert better.value > 0 and better.excludes(0.0)
+
+
+def test_seed_mean_interval_averages_seeds_inside_each_replicate() -> None:
+    scores, positive, episodes = _data()
+    other = scores + np.random.default_rng(5).normal(0.0, 0.5, scores.size)
+    # One seed: exactly the single-run interval and paired difference.
+    assert mean_auc_interval(scores[None, :], positive, episodes) == auc_interval(scores, positive, episodes)
+    assert paired_mean_auc_difference(scores, other, positive, episodes) == paired_auc_difference(
+        scores, other, positive, episodes
+    )
+    # Two seeds: the estimate is the mean of the seeds' AUCs, and each replicate averages them.
+    both = np.stack([scores, other])
+    ci = mean_auc_interval(both, positive, episodes, replicates=300)
+    assert ci.value == pytest.approx(np.mean([roc_auc_score(positive, s) for s in both]), abs=1e-12)
+    weights = episode_draws(episodes, positive, replicates=300)
+    per_seed = np.stack([weighted_auc(s, positive, weights) for s in both])
+    boot = bootstrap_mean_auc(both, positive, episodes, weights)
+    np.testing.assert_allclose(boot.replicates, per_seed.mean(axis=0))
+    assert ci.low < ci.value < ci.high
+
+
+def test_seed_mean_difference_of_a_method_with_itself_is_exactly_zero() -> None:
+    scores, positive, episodes = _data()
+    runs = np.stack([scores, scores[::-1], np.round(scores * 0.5, 1)])
+    same = paired_mean_auc_difference(runs, runs, positive, episodes)
+    assert same.value == same.low == same.high == 0.0
+    weights = episode_draws(episodes, positive, replicates=10)
+    with pytest.raises(ValueError, match="not the same draws"):
+        bootstrap_mean_auc(runs, positive, episodes, weights).minus(
+            bootstrap_mean_auc(runs, positive, episodes, weights[:5])
+        )
+
+
+def test_one_episode_in_a_class_leaves_the_seed_mean_interval_undefined() -> None:
+    scores, positive, episodes = _data()
+    one_normal = np.where(positive, episodes, "n0")  # every normal window in one episode
+    ci = mean_auc_interval(scores, positive, one_normal)
+    assert ci.value == pytest.approx(roc_auc_score(positive, scores))
+    assert np.isnan(ci.low) and np.isnan(ci.high)
+    diff = paired_mean_auc_difference(scores, scores[::-1], positive, one_normal)
+    assert np.isfinite(diff.value) and np.isnan(diff.half_width)
 
 
 def test_auc_per_normal_episode_uses_one_normal_sequence_at_a_time() -> None:

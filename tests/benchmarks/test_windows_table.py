@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.dataset import label_windows, plan_episodes, window_starts
+from benchmarks.dataset import label_windows, nominal_floors, plan_episodes, window_starts
 from benchmarks.presets import get_preset, preset_names
 from sim.vocab import COLLISION, MECHANICAL, NORMAL, SURFACES, sub_kind_index
 
@@ -74,10 +74,42 @@ def test_nominal_training_and_test_sequences_each_cover_every_surface(name: str)
 def test_paper_preset_has_the_papers_size() -> None:
     plan = plan_episodes(get_preset("paper"), 0)
     nominal = [s for s in plan if s.category == "nominal"]
-    assert len(nominal) == 21
-    assert sum(s.split in ("train", "val") for s in nominal) == 15
+    assert sum(s.split in ("train", "val") for s in nominal) == 48
     hours = sum(s.duration_s for s in nominal) / 3600
-    assert hours == pytest.approx(2.0, abs=0.1)
+    assert hours == pytest.approx(2.3, abs=0.1)
+
+
+@pytest.mark.parametrize("name", ["paper", "hard"])
+def test_many_short_test_nominal_sequences_cover_every_floor_and_unit(name: str) -> None:
+    preset = get_preset(name)
+    plan = plan_episodes(preset, 0)
+    test = [s for s in plan if s.category == "nominal" and s.split == "test"]
+    assert len(test) >= 36
+    floors = [(s.environment, s.surface) for s in test]
+    assert set(floors) == set(nominal_floors())
+    assert min(floors.count(f) for f in set(floors)) >= 5  # every floor several times, not once
+    for floor in set(floors):  # every floor is driven by every test unit
+        assert {s.unit_id for s in test if (s.environment, s.surface) == floor} == set(preset.test_units)
+
+
+@pytest.mark.parametrize("name", preset_names())
+def test_snr_is_drawn_uniformly_inside_the_presets_range(name: str) -> None:
+    preset = get_preset(name)
+    low, high = preset.snr_db
+    snr = np.array([s.snr_db for s in plan_episodes(preset, 0)])
+    assert np.all((snr >= low) & (snr <= high))
+    if high > low:
+        assert np.unique(snr).size == snr.size  # continuous draws, not a few values chosen from
+        for split in ("train", "test"):  # every split draws from the whole range
+            part = np.array([s.snr_db for s in plan_episodes(preset, 0) if s.split == split])
+            assert part.min() < low + 0.25 * (high - low) and part.max() > high - 0.25 * (high - low)
+
+
+def test_an_snr_range_must_be_low_high() -> None:
+    import dataclasses
+
+    with pytest.raises(ValueError, match="snr_db must be a \\(low, high\\) range"):
+        dataclasses.replace(get_preset("tiny"), snr_db=(6.0, 0.0))
 
 
 def test_unknown_preset_names_the_allowed_ones() -> None:

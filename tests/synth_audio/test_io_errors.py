@@ -101,7 +101,7 @@ def test_cli_synth_writes_audio_and_stems(tmp_path: Path, capsys: pytest.Capture
     code = main(["synth", "--trace", str(trace_path), "--out", str(out), "--snr", "0", "--stems", str(stems)])
     assert code == 0, capsys.readouterr().err
     assert read(out).samples.shape == (44100, 2)
-    assert sorted(p.name for p in stems.iterdir())[:2] == ["ambience.wav", "faults.wav"]
+    assert sorted(p.name for p in stems.iterdir())[:3] == ["ambience.wav", "electronics.wav", "faults.wav"]
 
 
 @pytest.mark.parametrize("case", ["nan", "no mic_pos", "material", "snr", "rate"])

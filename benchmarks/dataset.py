@@ -498,6 +498,26 @@ def open_dataset(path: Path, verify: bool = True) -> Dataset:
     return Dataset(path=path, manifest=manifest, windows=rows)
 
 
+def check_dev(dev: Dataset, evaluated: Dataset) -> str:
+    """Refuse a dev dataset that is not another draw of the evaluated one; describe it for reports.
+
+    Every choice a method makes is made on the dev dataset; the evaluated (eval) dataset is only
+    reported. They must come from the same preset and from different seeds.
+    """
+    dev_preset, eval_preset = dev.manifest["preset"]["name"], evaluated.manifest["preset"]["name"]
+    if dev_preset != eval_preset:
+        raise DatasetError(
+            f"--dev {dev.path}: preset {dev_preset!r}, but the evaluated dataset is {eval_preset!r}; "
+            "a dev dataset must be another draw of the same preset"
+        )
+    if dev.manifest["seed"] == evaluated.manifest["seed"]:
+        raise DatasetError(
+            f"--dev {dev.path}: seed {dev.manifest['seed']} is the evaluated dataset's seed; "
+            "dev and eval must be generated from different seeds"
+        )
+    return f"`{dev.path}` (preset {dev_preset}, seed {dev.manifest['seed']})"
+
+
 def verify_dataset(path: Path, manifest: dict[str, Any]) -> None:
     """Check that every file the manifest lists exists and has its recorded sha256."""
     expected: list[tuple[Path, str]] = [(path / "windows.csv", manifest["windows"]["sha256"])]

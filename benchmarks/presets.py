@@ -169,17 +169,17 @@ _PRESETS: dict[str, Preset] = {
     "paper": Preset(
         name="paper",
         description="the paper's size in many short episodes (statistical power): ~2.3 h nominal, 48 "
-        "training sequences of 120 s (6 validation) and 42 test ones of 60 s (6 per floor); 25 collisions "
-        "of 24 s per obstacle kind, 3 faults of 40 s per fault kind and wheel; SNR 0-12 dB",
+        "training sequences of 120 s (6 validation) and 84 test ones of 30 s (12 per floor); 40 collisions "
+        "of 16 s per obstacle kind, 6 faults of 20 s per fault kind and wheel; SNR 0-12 dB",
         nominal_train=48,
         nominal_val=6,
         nominal_train_duration_s=120.0,
-        nominal_test=42,
-        nominal_test_duration_s=60.0,
-        collisions_per_kind=25,
-        collision_duration_s=24.0,
-        faults_per_kind_wheel=3,
-        fault_duration_s=40.0,
+        nominal_test=84,
+        nominal_test_duration_s=30.0,
+        collisions_per_kind=40,
+        collision_duration_s=16.0,
+        faults_per_kind_wheel=6,
+        fault_duration_s=20.0,
         severity=(0.3, 1.0),
         snr_db=(0.0, 12.0),
         transient_density=1.0,

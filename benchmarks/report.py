@@ -168,6 +168,8 @@ class RunInfo:
     """UTC date of the run."""
     train_seconds: dict[str, float]
     """Mean fit time per method, s."""
+    dev: str = ""
+    """The dev dataset every choice of the methods was made on (`describe_dev`); empty: none given."""
 
 
 def _fmt(mean: float, std: float, pct: bool = True, with_std: bool = True) -> str:
@@ -351,6 +353,8 @@ def markdown(
         "",
         f"- Command: `{info.command}`",
         f"- Date: {info.date}; machine: {info.machine}",
+        f"- Eval dataset: `{info.dataset}` (reported). Dev dataset: "
+        + (f"{info.dev} (every choice a method makes)" if info.dev else "none given (built-in settings)"),
         f"- Test windows: {first.n_normal} normal, {first.n_collision} collision, "
         f"{first.n_mechanical} mechanical",
         *_interval_notes(intervals, n_seeds),
@@ -431,6 +435,7 @@ def results_json(
         "command": info.command,
         "machine": info.machine,
         "date": info.date,
+        "dev": info.dev or None,
         "oracle_note": "f1_oracle and threshold_oracle are chosen on test labels (oracle); every other "
         "thresholded metric uses the training threshold",
         "methods": {},

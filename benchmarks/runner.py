@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import methods
-from benchmarks.dataset import generate, open_dataset
+from benchmarks.dataset import check_dev, generate, open_dataset
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import expand_methods, get_preset
@@ -31,11 +31,13 @@ def run_benchmark(
     seeds: list[int] | None,
     command: str,
     progress: bool = True,
+    dev: Path | None = None,
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
     Everything is written into a temporary folder beside `out` and renamed into place at the end, so an
-    interrupted run leaves no folder that looks complete. Returns `out`.
+    interrupted run leaves no folder that looks complete. `dev` names the dev dataset the methods'
+    choices were made on (checked against the evaluated one and recorded in the report). Returns `out`.
     """
     out = Path(out)
     if out.exists():
@@ -54,6 +56,7 @@ def run_benchmark(
         else:
             data_path = Path(data)
         dataset = open_dataset(data_path)
+        dev_text = check_dev(open_dataset(Path(dev), verify=False), dataset) if dev is not None else ""
         train, _ = dataset.load_windows("train")
         val = dataset.load_windows("val")[0] if dataset.rows("val") else None
         test = test_windows(dataset)
@@ -79,6 +82,7 @@ def run_benchmark(
             machine=machine_description(),
             date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
             train_seconds={k: float(np.mean(v)) for k, v in fit_time.items()},
+            dev=dev_text,
         )
         write_report(tmp, info, rows, scores, per_method)
         os.replace(tmp, out)

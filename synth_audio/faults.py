@@ -39,14 +39,14 @@ from synth_audio.impacts import IMPACT_SCALE, Material, struck_response
 from synth_audio.motor import MESH_WEIGHT, load_envelope
 from synth_audio.rolling import poisson_events
 
-FLAT_DEPTH_M = 0.002
-"""Depth of the flat at severity 1, m (a 35 mm-long flat on an 80 mm wheel: a tyre that skidded locked)."""
-PLAY_M = 0.0015
-"""Play of the loose hub at severity 1, m."""
+FLAT_DEPTH_M = 0.003
+"""Depth of the flat at severity 1, m (a 44 mm-long flat on an 80 mm wheel: a tyre that skidded locked)."""
+PLAY_M = 0.0025
+"""Play of the loose hub at severity 1, m (a wheel that visibly wobbles)."""
 WHEEL_MASS = 1.1
 """Mass of a wheel and hub, kg (the robot model's wheel): what clunks in a loose hub's play."""
-SPALL_M = 0.002
-"""Length of the outer-race spall at severity 1, m (a third of the ball diameter)."""
+SPALL_M = 0.003
+"""Length of the outer-race spall at severity 1, m (half the ball diameter: a bearing to replace)."""
 WEAR_GAIN = 3.0
 """Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+12 dB)."""
 RATTLE_RATE = 35.0

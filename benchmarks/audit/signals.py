@@ -134,10 +134,19 @@ def clipped(peak_dbfs: np.ndarray, margin_db: float = 1.0) -> np.ndarray:
     return np.asarray(peak_dbfs) >= -margin_db
 
 
-def repetition(signal: np.ndarray, rate: float, min_lag_s: float = 1.0) -> float:
+REPETITION_HIGHPASS_HZ = 500.0
+"""The repetition probe looks above this frequency: mains hum and fan blade tones below it are periodic by
+nature (a pure tone correlates with itself at every multiple of its period), a looped bed at every
+frequency."""
+
+
+def repetition(
+    signal: np.ndarray, rate: float, min_lag_s: float = 1.0, highpass_hz: float = REPETITION_HIGHPASS_HZ
+) -> float:
     """Largest normalised autocorrelation of a (n,) or (n, C) signal at lags beyond `min_lag_s`.
 
-    A looped noise bed shows a peak near 1 at its loop length; independent noise stays near 0.
+    A looped noise bed shows a peak near 1 at its loop length; independent noise stays near 0. Content
+    below `highpass_hz` is left out (see `REPETITION_HIGHPASS_HZ`).
     """
     x = np.asarray(signal, dtype=np.float64)
     x = x.mean(axis=1) if x.ndim == 2 else x
@@ -148,6 +157,7 @@ def repetition(signal: np.ndarray, rate: float, min_lag_s: float = 1.0) -> float
         raise ValueError(f"signal of {n / rate:.2f} s is too short for lags beyond {min_lag_s} s")
     size = 1 << int(np.ceil(np.log2(2 * n)))
     spectrum = np.fft.rfft(x, size)
+    spectrum[: int(np.ceil(highpass_hz * size / rate))] = 0.0
     acf = np.fft.irfft(spectrum * np.conj(spectrum), size)[:n]
     # Unbiased: each lag's sum has n - lag terms; only lags with at least half the signal are trusted.
     lags = np.arange(n)

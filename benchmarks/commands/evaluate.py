@@ -12,7 +12,7 @@ from pathlib import Path
 
 from benchmarks import methods
 from benchmarks.command import Command
-from benchmarks.dataset import open_dataset
+from benchmarks.dataset import check_dev, open_dataset
 from benchmarks.pipeline import TrainedModel, score_and_measure
 from benchmarks.report import RunInfo, write_report
 from benchmarks.runner import machine_description
@@ -22,12 +22,19 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, required=True, help="dataset folder (from `generate`)")
     p.add_argument("--model", type=Path, nargs="+", required=True, help="model folder(s) (from `train`)")
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
+    p.add_argument(
+        "--dev",
+        type=Path,
+        default=None,
+        help="the dev dataset (same preset, another seed) the models' choices were made on; recorded",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:
     if args.out.exists():
         raise FileExistsError(f"run folder exists already: {args.out}")
     dataset = open_dataset(args.data)
+    dev = check_dev(open_dataset(args.dev, verify=False), dataset) if args.dev is not None else ""
     models: list[TrainedModel] = []
     for folder in args.model:
         name, detector = methods.load_detector(folder)
@@ -42,6 +49,7 @@ def _run(args: argparse.Namespace) -> int:
         machine=machine_description(),
         date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
         train_seconds={},
+        dev=dev,
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{args.out.name}.partial-", dir=args.out.parent))

@@ -24,6 +24,13 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = "quick")
     )
     p.add_argument("--data", type=Path, default=None, help="reuse this dataset instead of generating one")
     p.add_argument(
+        "--dev",
+        type=Path,
+        default=None,
+        help="the dev dataset (same preset, another seed) every choice of the methods was made on; "
+        "recorded in the report",
+    )
+    p.add_argument(
         "--workers", type=int, default=None, help="generation worker processes (default: one per CPU)"
     )
     p.add_argument(
@@ -48,6 +55,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
         seeds=args.seeds,
         command="msvdd-bench " + " ".join(sys.argv[1:]),
         progress=not args.no_progress,
+        dev=args.dev,
     )
 
 

@@ -119,3 +119,26 @@ def test_existing_folder_is_refused(tmp_path: Path) -> None:
     (tmp_path / "data").mkdir()
     with pytest.raises(FileExistsError, match="dataset folder exists already"):
         ds.generate("tiny", 0, tmp_path / "data", workers=1, progress=False)
+
+
+def test_a_dev_dataset_must_be_another_seed_of_the_same_preset(tiny_dataset: Path, tmp_path: Path) -> None:
+    from benchmarks.dataset import DatasetError, check_dev, open_dataset
+
+    evaluated = open_dataset(tiny_dataset, verify=False)
+
+    def copy(seed: int, preset: str) -> Path:
+        folder = tmp_path / f"{preset}-{seed}"
+        folder.mkdir()
+        manifest = json.loads((tiny_dataset / "manifest.json").read_text())
+        manifest["seed"], manifest["preset"]["name"] = seed, preset
+        (folder / "manifest.json").write_text(json.dumps(manifest))
+        shutil.copy(tiny_dataset / "windows.csv", folder / "windows.csv")
+        return folder
+
+    seed = int(evaluated.manifest["seed"])
+    text = check_dev(open_dataset(copy(seed + 1, "tiny"), verify=False), evaluated)
+    assert f"seed {seed + 1}" in text
+    with pytest.raises(DatasetError, match=f"seed {seed} is the evaluated dataset's seed"):
+        check_dev(open_dataset(copy(seed, "tiny"), verify=False), evaluated)
+    with pytest.raises(DatasetError, match=r"preset 'quick'.*'tiny'"):
+        check_dev(open_dataset(copy(seed + 2, "quick"), verify=False), evaluated)

@@ -38,6 +38,7 @@ from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
 from sim import vocab
+from sim.random_scenarios import SETTLE_S
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
 DATASET_FORMAT_VERSION = 2
@@ -255,10 +256,10 @@ def label_windows(
     return out
 
 
-def window_starts(duration_s: float, hop_s: float) -> np.ndarray:
-    """Start times of every whole 2 s window at the given hop."""
-    n = int(np.floor((duration_s - WINDOW_S) / hop_s + 1e-9)) + 1
-    return np.arange(max(n, 0)) * hop_s
+def window_starts(duration_s: float, hop_s: float, first_s: float = SETTLE_S) -> np.ndarray:
+    """Start times of every whole 2 s window at the given hop, from `first_s` (the robot under way)."""
+    n = int(np.floor((duration_s - WINDOW_S - first_s) / hop_s + 1e-9)) + 1
+    return first_s + np.arange(max(n, 0)) * hop_s
 
 
 @dataclass(frozen=True)

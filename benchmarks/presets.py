@@ -168,17 +168,17 @@ _PRESETS: dict[str, Preset] = {
     ),
     "paper": Preset(
         name="paper",
-        description="the paper's size in many short episodes (statistical power): ~2.3 h nominal, 48 "
-        "training sequences of 120 s (6 validation) and 84 test ones of 30 s (12 per floor); 40 collisions "
-        "of 16 s per obstacle kind, 6 faults of 20 s per fault kind and wheel; SNR 0-12 dB",
+        description="the paper's size in many short episodes (statistical power): ~2.6 h nominal, 48 "
+        "training sequences of 120 s (6 validation) and 126 test ones of 30 s (18 per floor); 48 collisions "
+        "of 16 s per obstacle kind, 8 faults of 20 s per fault kind and wheel; SNR 0-12 dB",
         nominal_train=48,
         nominal_val=6,
         nominal_train_duration_s=120.0,
-        nominal_test=84,
+        nominal_test=126,
         nominal_test_duration_s=30.0,
-        collisions_per_kind=40,
+        collisions_per_kind=48,
         collision_duration_s=16.0,
-        faults_per_kind_wheel=6,
+        faults_per_kind_wheel=8,
         fault_duration_s=20.0,
         severity=(0.3, 1.0),
         snr_db=(0.0, 12.0),
@@ -186,7 +186,7 @@ _PRESETS: dict[str, Preset] = {
         train_units=(0, 1, 2, 3),
         test_units=(0, 1, 2, 3),
         train_hop_s=1.0,
-        test_hop_s=2.0,
+        test_hop_s=1.0,
         method_scale="paper",
         seeds=(0, 1, 2),
         methods=TABLE1_METHODS,

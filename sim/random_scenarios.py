@@ -321,8 +321,12 @@ NEAR_MISS_EVERY = 15.0
 """Mean driving time between near misses (legs at an obstacle that the safety field stops short), s."""
 BRAKE_DECEL = 3.0
 """Deceleration a safety stop is planned with, m/s^2 (the robot brakes harder: it stops short)."""
+SETTLE_S = 2.0
+"""The first seconds of an episode, in which the robot leaves its start: datasets cut no window from them
+(an episode's first window finds the robot under way, whatever the category)."""
 FIRST_HIT = (0.05, 0.3)
-"""Range of the planned time of a collision episode's first hit, as fractions of its duration."""
+"""Range of the planned time of a collision episode's first hit after `SETTLE_S`, as fractions of its
+duration."""
 REFLEX_WEIGHTS: dict[str, float] = {"reverse": 0.4, "wait": 0.25, "push": 0.2, "continue": 0.15}
 """How often each reflex is drawn (every category draws one: nominal near misses use it too)."""
 
@@ -373,7 +377,8 @@ def _route(
         aim = np.array([legs[1].x, legs[1].y])
         if _clearance(approach[None], obstacles) < 0.6:
             continue
-        reach = float(np.clip(legs[0].speed * rng.uniform(*FIRST_HIT) * duration, 1.2, MAX_LEG))
+        first = SETTLE_S + rng.uniform(*FIRST_HIT) * duration
+        reach = float(np.clip(legs[0].speed * first, 1.2, MAX_LEG))
         along = math.atan2(aim[1] - approach[1], aim[0] - approach[0])
         for _ in range(30):
             angle = along + float(rng.uniform(-1.0, 1.0))

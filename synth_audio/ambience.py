@@ -27,6 +27,8 @@ from synth_audio.dsp import (
 from synth_audio.spatial import plane_wave_gains, spatialize_into
 
 _BLOCK = 256
+INTONATION = 0.2
+"""Standard deviation of a talker's log pitch (speech moves over a few semitones, ~20 %)."""
 
 
 @dataclass(frozen=True)
@@ -101,9 +103,11 @@ def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarr
     pool = bed_pool(rng, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
     out = np.zeros(n, dtype=np.float32)
     for _ in range(talkers):
-        f0 = rng.uniform(95.0, 220.0) * np.exp(0.08 * _slow_process(rng, nb, ctrl, 3.0))
+        f0 = rng.uniform(95.0, 220.0) * np.exp(INTONATION * _slow_process(rng, nb, ctrl, 3.0))
         cycles = np.cumsum(f0 / ctrl)
-        buzz = frac_phase(cycles[None, :], _BLOCK, n)[0] * np.float32(2.0) - np.float32(1.0)
+        phase = frac_phase(cycles[None, :], _BLOCK, n)[0]
+        phase -= np.floor(phase)  # frac_phase is only wrapped at block starts: a sawtooth needs [0, 1)
+        buzz = phase * np.float32(2.0) - np.float32(1.0)
         syllable = np.clip(_slow_process(rng, nb, ctrl, 4.5), 0.0, None)
         phrase = (_slow_process(rng, nb, ctrl, 0.3) > rng.uniform(-0.6, 0.2)).astype(np.float64)
         env = syllable * one_pole_lowpass(phrase.astype(np.float32), 8.0, int(ctrl)) * rng.uniform(0.5, 1.0)

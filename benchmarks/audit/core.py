@@ -55,6 +55,7 @@ from benchmarks.metrics import roc_auc
 from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
 from msvdd import preprocess
 from msvdd.contract import IMU_RATE, WINDOW_S, Windows
+from sim.random_scenarios import SETTLE_S
 from sim.trace import Trace
 from sim.vocab import NORMAL
 
@@ -108,15 +109,21 @@ def _kinematics(trace_path: Path, starts: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def context_starts(
-    label: np.ndarray, hop_s: float = CONTEXT_HOP_S, margin_s: float = CONTEXT_MARGIN_S
+    label: np.ndarray,
+    hop_s: float = CONTEXT_HOP_S,
+    margin_s: float = CONTEXT_MARGIN_S,
+    first_s: float = SETTLE_S,
 ) -> np.ndarray:
-    """Starts of 2 s windows whose span, widened by `margin_s` each side, holds only normal samples."""
+    """Starts of 2 s windows whose span, widened by `margin_s` each side, holds only normal samples.
+
+    Like the dataset's windows, they start `first_s` into the episode at the earliest.
+    """
     n = len(label)
     duration = n / IMU_RATE
     anomalous = np.asarray(label) != NORMAL
     bad = np.r_[0, np.cumsum(anomalous)]
     out = []
-    start = 0.0
+    start = float(first_s)
     while start + WINDOW_S <= duration + 1e-9:
         i0 = max(0, round((start - margin_s) * IMU_RATE))
         i1 = min(n, round((start + WINDOW_S + margin_s) * IMU_RATE))

@@ -77,8 +77,9 @@ def test_repetition_sees_a_looped_bed_and_not_fresh_noise() -> None:
 def test_context_windows_keep_their_distance_from_anomalies() -> None:
     label = np.full(2000, NORMAL)  # 10 s at 200 Hz
     label[1000:1100] = COLLISION  # 5.0 .. 5.5 s
-    starts = context_starts(label, hop_s=1.0, margin_s=1.0)
+    starts = context_starts(label, hop_s=1.0, margin_s=1.0, first_s=0.0)
     assert starts.tolist() == [0.0, 1.0, 2.0, 7.0, 8.0]
+    assert context_starts(label, hop_s=1.0, margin_s=1.0).tolist() == [2.0, 7.0, 8.0]  # from SETTLE_S
 
 
 def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ import pytest
 
 from benchmarks.dataset import label_windows, nominal_floors, plan_episodes, window_starts
 from benchmarks.presets import get_preset, preset_names
+from sim.random_scenarios import SETTLE_S
 from sim.vocab import COLLISION, MECHANICAL, NORMAL, SURFACES, sub_kind_index
 
 RATE = 200
@@ -20,9 +21,15 @@ def _timeline(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def test_window_starts_cover_whole_windows_only() -> None:
-    np.testing.assert_allclose(window_starts(10.0, 2.0), [0, 2, 4, 6, 8])
-    np.testing.assert_allclose(window_starts(5.5, 1.0), [0, 1, 2, 3])
-    assert window_starts(1.5, 1.0).size == 0
+    np.testing.assert_allclose(window_starts(10.0, 2.0, first_s=0.0), [0, 2, 4, 6, 8])
+    np.testing.assert_allclose(window_starts(5.5, 1.0, first_s=0.0), [0, 1, 2, 3])
+    assert window_starts(1.5, 1.0, first_s=0.0).size == 0
+
+
+def test_windows_start_once_the_robot_is_under_way() -> None:
+    assert SETTLE_S == 2.0
+    np.testing.assert_allclose(window_starts(10.0, 2.0), [2, 4, 6, 8])
+    assert window_starts(3.5, 1.0).size == 0
 
 
 def test_collision_sample_makes_a_collision_window() -> None:
@@ -76,7 +83,7 @@ def test_paper_preset_has_the_papers_size() -> None:
     nominal = [s for s in plan if s.category == "nominal"]
     assert sum(s.split in ("train", "val") for s in nominal) == 48
     hours = sum(s.duration_s for s in nominal) / 3600
-    assert hours == pytest.approx(2.3, abs=0.1)
+    assert hours == pytest.approx(2.65, abs=0.1)
 
 
 @pytest.mark.parametrize("name", ["paper", "hard"])

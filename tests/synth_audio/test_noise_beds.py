@@ -41,3 +41,12 @@ def test_ambience_does_not_repeat(where: str) -> None:
     rng = np.random.default_rng(2)
     dry, _ = indoor(scene, rng, 0.0, 10) if where == "indoor" else outdoor(scene, rng, 0.0)
     assert repetition(dry.T, SR) < 0.2
+
+
+def test_distant_babble_is_voiced_at_its_pitch_not_at_the_block_rate() -> None:
+    # The voiced buzz is a sawtooth at the talker's pitch; a phase left unwrapped within control blocks
+    # once made it a 43 Hz block-rate ramp that repeated exactly (autocorrelation 0.95 at 8.4 s).
+    from synth_audio.ambience import _babble
+
+    low = SR // 4
+    assert repetition(_babble(20 * low, low, np.random.default_rng(1), 3), low) < 0.1

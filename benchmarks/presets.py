@@ -168,17 +168,17 @@ _PRESETS: dict[str, Preset] = {
     ),
     "paper": Preset(
         name="paper",
-        description="the paper's size in many short episodes (statistical power): ~2.6 h nominal, 48 "
-        "training sequences of 120 s (6 validation) and 126 test ones of 30 s (18 per floor); 48 collisions "
-        "of 16 s per obstacle kind, 8 faults of 20 s per fault kind and wheel; SNR 0-12 dB",
+        description="the paper's size in many short episodes (statistical power): ~3 h nominal, 48 "
+        "training sequences of 120 s (6 validation) and 168 test ones of 30 s (24 per floor); 56 collisions "
+        "of 16 s per obstacle kind, 10 faults of 20 s per fault kind and wheel; SNR 0-12 dB",
         nominal_train=48,
         nominal_val=6,
         nominal_train_duration_s=120.0,
-        nominal_test=126,
+        nominal_test=168,
         nominal_test_duration_s=30.0,
-        collisions_per_kind=48,
+        collisions_per_kind=56,
         collision_duration_s=16.0,
-        faults_per_kind_wheel=8,
+        faults_per_kind_wheel=10,
         fault_duration_s=20.0,
         severity=(0.3, 1.0),
         snr_db=(0.0, 12.0),

@@ -315,9 +315,9 @@ def _free_point(
 
 BACK_OUT_SHARE = 0.25
 """Share of route waypoints the robot leaves by backing out (reversing 0.6-1.5 m) before driving on."""
-ESTOP_SHARE = 0.08
+ESTOP_SHARE = 0.12
 """Share of legs on which the robot makes an emergency stop (braking at the torque limit) midway."""
-NEAR_MISS_EVERY = 15.0
+NEAR_MISS_EVERY = 10.0
 """Mean driving time between near misses (legs at an obstacle that the safety field stops short), s."""
 BRAKE_DECEL = 3.0
 """Deceleration a safety stop is planned with, m/s^2 (the robot brakes harder: it stops short)."""
@@ -338,7 +338,7 @@ def _reflex(rng: np.random.Generator) -> Reflex:
     return Reflex(
         kind=kind,
         delay=float(rng.uniform(0.0, 0.3)),
-        wait=float(rng.uniform(0.0, 2.5)),
+        wait=float(rng.uniform(0.0, 1.5)),
         reverse_time=float(rng.uniform(0.4, 1.5)),
         reverse_speed=float(rng.uniform(0.15, 0.35)),
         push_time=float(rng.uniform(0.3, 2.5)) if kind == "push" else 0.0,
@@ -350,9 +350,13 @@ def _leg_speed(rng: np.random.Generator) -> float:
     return float(rng.uniform(0.3, 1.4))
 
 
+DWELL_SHARE = 0.45
+"""Share of waypoints the robot stops at (waiting for people, at doors, at its tasks), for 0.5-4 s."""
+
+
 def _dwell(rng: np.random.Generator) -> float:
-    """Stop at a waypoint: a quarter of them, 0.5-4 s."""
-    return float(rng.uniform(0.5, 4.0)) if rng.random() < 0.25 else 0.0
+    """Stop at a waypoint: `DWELL_SHARE` of them, 0.5-4 s."""
+    return float(rng.uniform(0.5, 4.0)) if rng.random() < DWELL_SHARE else 0.0
 
 
 def _route(

@@ -3,7 +3,8 @@
 The probes (limits in `benchmarks.audit.report`):
 
 - behaviour: what the robot does, from the simulator's ground-truth motion (fraction of the window
-  reversing, fraction turning in place, peak deceleration, peak yaw rate), scored as they are;
+  reversing, turning in place and standing still, peak deceleration, peak yaw rate), scored as they are
+  (standing still is what "the drive noise stops" means);
 - naive: window audio RMS, peak level, crest factor and spectral-flux peak at 44.1 kHz, and the IMU
   acceleration peak, overall, per kind and per sub-kind;
 - deleted: the test anomaly episodes rendered again from their stored traces without their own sound
@@ -69,7 +70,9 @@ MUTED_ANOMALY_SOURCES: tuple[str, ...] = ("impacts", "faults")
 """What the deleted-sound probe mutes: collision impacts and scrapes, and wheel-fault sounds."""
 
 BEHAVIOUR_PROBES = ("reversing", "turning_in_place", "yaw_rate_peak")
-"""Behaviour scalars with a limit on collisions (peak deceleration is the impact itself: reported)."""
+"""Behaviour scalars with a limit on collisions. Peak deceleration is the impact itself, and standing still
+is what a contact does to a robot (it stops against the obstacle, then its reflex runs): both reported;
+what audio hears of the stop is limited by the deleted-sound probe."""
 NAIVE_AUDIO = ("rms", "peak", "crest", "flux")
 """Naive audio scalars with limits (the IMU acceleration peak is reported)."""
 
@@ -275,6 +278,7 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
 
     for name in BEHAVIOUR_PROBES:
         scalar_rows("behaviour", name, behaviour_limit)
+    scalar_rows("behaviour", "standing", lambda t: None)
     scalar_rows("behaviour", "peak_deceleration", lambda t: None)
 
     # Naive scalars.

@@ -19,6 +19,8 @@ STILL_SPEED = 0.05
 """Forward speed under this (in magnitude) counts as not driving, m/s."""
 TURN_RATE = 0.3
 """Yaw rate above this while not driving counts as turning in place, rad/s."""
+STAND_RATE = 0.1
+"""Yaw rate under this while not driving counts as standing still, rad/s."""
 DECEL_SMOOTH_S = 0.04
 """Forward speed is smoothed over this long before differentiating it, s."""
 FLUX_FRAME = 1024
@@ -52,7 +54,7 @@ def forward_speed(base_quat: np.ndarray, base_linvel: np.ndarray) -> np.ndarray:
 def behaviour(
     speed: np.ndarray, yaw_rate: np.ndarray, rate: float, starts_s: np.ndarray
 ) -> dict[str, np.ndarray]:
-    """Per window: fraction reversing, fraction turning in place, peak deceleration, peak yaw rate.
+    """Per window: fraction reversing, turning in place, standing still; peak deceleration and yaw rate.
 
     Reversing is backing at more than `REVERSE_SPEED` for at least `REVERSE_MIN_S` (a manoeuvre; the
     rebound of a hit is the impact, like the deceleration).
@@ -74,6 +76,7 @@ def behaviour(
     return {
         "reversing": np.array([np.mean(backing[s]) for s in spans]),
         "turning_in_place": np.array([np.mean(still[s] & (w[s] > TURN_RATE)) for s in spans]),
+        "standing": np.array([np.mean(still[s] & (w[s] < STAND_RATE)) for s in spans]),
         "peak_deceleration": np.array([np.max(decel[s]) for s in spans]),
         "yaw_rate_peak": np.array([np.max(w[s]) for s in spans]),
     }

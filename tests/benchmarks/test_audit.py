@@ -41,6 +41,8 @@ def test_behaviour_fractions_and_peaks_of_a_known_profile() -> None:
     assert out["reversing"][0] == pytest.approx(0.0)
     assert out["reversing"][1] == pytest.approx(1.0)
     assert out["turning_in_place"][0] == pytest.approx(0.75 / 2.0, abs=0.01)
+    assert out["standing"][0] == pytest.approx(0.0, abs=0.02)  # turning is not standing
+    assert out["standing"][1] == pytest.approx(0.0, abs=0.01)
     assert out["peak_deceleration"][0] == pytest.approx(2.0, rel=0.05)
     assert out["yaw_rate_peak"].tolist() == [1.0, 0.0]
 
@@ -87,7 +89,7 @@ def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_
     groups = {r.group for r in result.rows}
     assert groups == {"behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "ambience"}
     probes = {(r.group, r.probe) for r in result.rows}
-    for name in ("reversing", "turning_in_place", "yaw_rate_peak", "peak_deceleration"):
+    for name in ("reversing", "turning_in_place", "standing", "yaw_rate_peak", "peak_deceleration"):
         assert ("behaviour", name) in probes
     for name in ("rms", "peak", "crest", "flux", "acc_peak"):
         assert ("naive", name) in probes
@@ -109,3 +111,11 @@ def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_
 def test_audit_command_refuses_a_missing_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["audit", str(tmp_path / "nothing")]) == 2
     assert "nothing" in capsys.readouterr().err
+
+
+def test_standing_still_is_a_stop_without_turning() -> None:
+    rate = 400.0
+    t = np.arange(0, 4.0, 1 / rate)
+    v = np.where(t < 2.5, 0.0, 0.5)  # stands 2.5 s, then drives
+    out = behaviour(v, np.zeros_like(t), rate, np.array([0.0, 2.0]))
+    assert out["standing"].tolist() == pytest.approx([1.0, 0.25], abs=0.01)

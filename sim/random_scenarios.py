@@ -313,7 +313,7 @@ def _free_point(
     return None
 
 
-BACK_OUT_SHARE = 0.25
+BACK_OUT_SHARE = 0.3
 """Share of route waypoints the robot leaves by backing out (reversing 0.6-1.5 m) before driving on."""
 ESTOP_SHARE = 0.12
 """Share of legs on which the robot makes an emergency stop (braking at the torque limit) midway."""

@@ -23,6 +23,8 @@ STAND_RATE = 0.1
 """Yaw rate under this while not driving counts as standing still, rad/s."""
 DECEL_SMOOTH_S = 0.04
 """Forward speed is smoothed over this long before differentiating it, s."""
+YAW_SMOOTH_S = 0.25
+"""The yaw-rate peak is of the yaw rate averaged over this long, s: a turn, not the jolt of a hit."""
 FLUX_FRAME = 1024
 """Frame of the spectral-flux STFT at the audio rate, samples (23 ms at 44.1 kHz)."""
 FLUX_RANGE_DB = 80.0
@@ -56,8 +58,9 @@ def behaviour(
 ) -> dict[str, np.ndarray]:
     """Per window: fraction reversing, turning in place, standing still; peak deceleration and yaw rate.
 
-    Reversing is backing at more than `REVERSE_SPEED` for at least `REVERSE_MIN_S` (a manoeuvre; the
-    rebound of a hit is the impact, like the deceleration).
+    Reversing is backing at more than `REVERSE_SPEED` for at least `REVERSE_MIN_S`, and the yaw-rate peak
+    is of the yaw rate averaged over `YAW_SMOOTH_S`: manoeuvres; the rebound and the spin of a hit are the
+    impact, like the deceleration.
 
     Args:
         speed: (n,) forward speed at `rate`, m/s.
@@ -70,6 +73,8 @@ def behaviour(
     k = max(1, round(DECEL_SMOOTH_S * rate))
     smooth = np.convolve(np.abs(v), np.ones(k) / k, mode="same")
     decel = -np.gradient(smooth, 1.0 / rate)
+    k_yaw = max(1, round(YAW_SMOOTH_S * rate))
+    turning = np.convolve(w, np.ones(k_yaw) / k_yaw, mode="same")
     spans = _spans(starts_s, rate, v.size)
     still = np.abs(v) < STILL_SPEED
     backing = _runs_at_least(v < -REVERSE_SPEED, max(1, round(REVERSE_MIN_S * rate)))
@@ -78,7 +83,7 @@ def behaviour(
         "turning_in_place": np.array([np.mean(still[s] & (w[s] > TURN_RATE)) for s in spans]),
         "standing": np.array([np.mean(still[s] & (w[s] < STAND_RATE)) for s in spans]),
         "peak_deceleration": np.array([np.max(decel[s]) for s in spans]),
-        "yaw_rate_peak": np.array([np.max(w[s]) for s in spans]),
+        "yaw_rate_peak": np.array([np.max(turning[s]) for s in spans]),
     }
 
 

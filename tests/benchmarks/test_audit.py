@@ -33,18 +33,27 @@ def test_forward_speed_follows_the_heading() -> None:
 def test_behaviour_fractions_and_peaks_of_a_known_profile() -> None:
     rate = 400.0
     t = np.arange(0, 4.0, 1 / rate)
-    # 1 s forward at 0.5 m/s, brake linearly to 0 in 0.25 s (2 m/s^2), 0.75 s still and turning at 1 rad/s,
-    # 2 s reversing at 0.2 m/s.
+    # 1 s forward at 0.5 m/s, brake linearly to 0 in 0.25 s (2 m/s^2), turn in place at 1 rad/s for 0.5 s,
+    # stand 0.25 s, then 2 s reversing at 0.2 m/s.
     v = np.select([t < 1.0, t < 1.25, t < 2.0], [0.5, 0.5 - 2.0 * (t - 1.0), 0.0], -0.2)
-    w = np.where((t >= 1.25) & (t < 2.0), 1.0, 0.0)
+    w = np.where((t >= 1.25) & (t < 1.75), 1.0, 0.0)
     out = behaviour(v, w, rate, np.array([0.0, 2.0]))
     assert out["reversing"][0] == pytest.approx(0.0)
     assert out["reversing"][1] == pytest.approx(1.0)
-    assert out["turning_in_place"][0] == pytest.approx(0.75 / 2.0, abs=0.01)
-    assert out["standing"][0] == pytest.approx(0.0, abs=0.02)  # turning is not standing
+    assert out["turning_in_place"][0] == pytest.approx(0.5 / 2.0, abs=0.01)
+    # Standing: below 0.05 m/s from 1.225 s, not turning: 1.225-1.25 s and 1.75-2.0 s.
+    assert out["standing"][0] == pytest.approx(0.275 / 2.0, abs=0.01)
     assert out["standing"][1] == pytest.approx(0.0, abs=0.01)
     assert out["peak_deceleration"][0] == pytest.approx(2.0, rel=0.05)
-    assert out["yaw_rate_peak"].tolist() == [1.0, 0.0]
+    assert out["yaw_rate_peak"].tolist() == pytest.approx([1.0, 0.0])
+
+
+def test_a_jolt_is_not_a_turn() -> None:
+    rate = 400.0
+    w = np.zeros(1600)
+    w[400:420] = 3.0  # a 50 ms spin of a hit: averaged over 0.25 s it is 0.6 rad/s
+    out = behaviour(np.full(1600, 0.5), w, rate, np.array([0.0]))
+    assert out["yaw_rate_peak"][0] == pytest.approx(3.0 * 20 / 100, rel=0.01)
 
 
 def test_audio_levels_of_a_full_scale_sine() -> None:

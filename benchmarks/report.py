@@ -65,6 +65,12 @@ LATENT_SWEEP: tuple[tuple[str, str], ...] = (
     ("msvdd-s64", "s = 64"),
 )
 NAIVE: tuple[tuple[str, str], ...] = (("audio-rms", "audio RMS"), ("imu-kurtosis", "IMU kurtosis"))
+REFERENCE: tuple[tuple[str, str], ...] = (
+    ("gaussian-early", "Gaussian, log-mel + IMU statistics"),
+    ("gaussian-audio", "Gaussian, log-mel statistics"),
+    ("gaussian-imu", "Gaussian, IMU statistics"),
+)
+"""The audit's reference detector: a Ledoit-Wolf Gaussian on fixed window statistics (no learning)."""
 
 TOO_EASY_AUC = 0.9
 """A naive baseline at or above this AUC means the benchmark is too easy, and the report says so."""
@@ -379,6 +385,10 @@ def markdown(
         "",
         *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS, intervals),
         "",
+        "## Reference detector (the audit's: a Gaussian on fixed window statistics)",
+        "",
+        *_table(REFERENCE, per_method, _MAIN_COLUMNS, intervals),
+        "",
         "## Naive sanity baselines",
         "",
         *_table(NAIVE, per_method, _MAIN_COLUMNS, intervals),
@@ -407,7 +417,7 @@ def _sub_kind_table(
 ) -> list[str]:
     """Rows per anomaly sub-kind, columns for the comparison and naive methods (ablations stay in JSON)."""
     subs = sorted({s for runs in per_method.values() for r in runs for s in r.auc_by_sub_kind})
-    names = [m for name, _ in (*COMPARISON, *NAIVE) for m in _resolve(name, per_method)]
+    names = [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
     lines = ["| Sub-kind | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for sub in subs:
         cells = [

@@ -2,8 +2,9 @@
 
 Everything is drawn from one `np.random.Generator` seeded by the caller's seed, so the same arguments
 give the same scenario. Routes wander inside the arena through free space (checked against every
-obstacle with a clearance margin) and loop, so long episodes keep driving sensibly; benign transients
-are laid across the route's legs so that nominal driving meets them.
+obstacle with a clearance margin) and loop, so long episodes keep driving sensibly; every category gets
+the same manoeuvres (emergency stops, back-outs, near misses) and a drawn reflex; benign transients are
+laid across the route's legs so that nominal driving meets them.
 """
 
 from __future__ import annotations
@@ -142,11 +143,13 @@ def random_scenario(
 
     Args:
         seed: seed of every draw (also the scenario's seed).
-        category: `nominal` (route with turns, stops and benign transients, avoiding obstacles),
-            `collision` (nominal driving plus rams into an obstacle of `obstacle_kind`), or `fault`
-            (nominal driving with one fault of `fault_kind` whose onset is inside the episode).
+        category: `nominal` (a route with turns, stops, back-outs, emergency stops, near misses and benign
+            transients), `collision` (the same driving, whose first leg meets an unseen obstacle of
+            `obstacle_kind`), or `fault` (the same driving with one fault of `fault_kind` whose onset is
+            inside the episode).
         duration: episode length, s.
-        environment: indoor or outdoor (random when None; outdoor for a curb).
+        environment: indoor or outdoor (when None, drawn among the obstacle kind's environments,
+            `OBSTACLE_ENVIRONMENTS`: doors and desks indoors, curbs outdoors).
         obstacle_kind: kind to collide with (collision; random when None).
         fault_kind: fault kind (fault; random when None).
         wheel: faulty wheel (random when None).

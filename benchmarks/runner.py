@@ -22,8 +22,8 @@ from benchmarks.report import RunInfo, write_report
 def run_benchmark(
     out: Path,
     *,
-    preset_name: str,
-    seed: int,
+    preset_name: str | None,
+    seed: int | None,
     method_names: list[str] | None,
     data: Path | None,
     workers: int | None,
@@ -32,16 +32,23 @@ def run_benchmark(
     command: str,
     progress: bool = True,
     dev: Path | None = None,
+    default_preset: str = "quick",
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
     Everything is written into a temporary folder beside `out` and renamed into place at the end, so an
     interrupted run leaves no folder that looks complete. `dev` names the dev dataset the methods'
-    choices were made on (checked against the evaluated one and recorded in the report). Returns `out`.
+    choices were made on (checked against the evaluated one and recorded in the report). With `data`, the
+    preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
+    without, they default to `default_preset` and 0. Returns `out`.
     """
     out = Path(out)
     if out.exists():
         raise FileExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
+    if data is not None:
+        preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
+    preset_name = preset_name or default_preset
+    seed = 0 if seed is None else seed
     preset = get_preset(preset_name)
     names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
     for name in names:
@@ -90,6 +97,17 @@ def run_benchmark(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def _dataset_identity(data: Path, preset_name: str | None, seed: int | None) -> tuple[str, int]:
+    """The preset and seed `data` was generated with; a `--preset` or `--seed` that disagrees is an error."""
+    manifest = open_dataset(data, verify=False).manifest
+    ds_preset, ds_seed = str(manifest["preset"]["name"]), int(manifest["seed"])
+    if preset_name is not None and preset_name != ds_preset:
+        raise ValueError(f"--preset {preset_name}: dataset {data} was generated with preset {ds_preset}")
+    if seed is not None and seed != ds_seed:
+        raise ValueError(f"--seed {seed}: dataset {data} was generated with seed {ds_seed}")
+    return ds_preset, ds_seed
 
 
 def machine_description() -> str:

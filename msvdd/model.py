@@ -86,6 +86,7 @@ class MSVDD:
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
+        self._terms: list[tuple[float, float, float]] = []
 
     # ---------------------------------------------------------------- training
 
@@ -111,8 +112,15 @@ class MSVDD:
         if not cfg.use_mahalanobis:
             self._init_center(train_t)
         self._mcd_calls = 0
+        self._terms = []
         self.history_ = train_network(
-            self.module, self.batch_loss, train_t, val_t, cfg, val_loss_fn=self._val_loss
+            self.module,
+            self.batch_loss,
+            train_t,
+            val_t,
+            cfg,
+            val_loss_fn=self._val_loss,
+            epoch_probe=self._epoch_figures,
         )
         self._finalise(train_t)
         return self
@@ -170,7 +178,15 @@ class MSVDD:
         audio, imu = batch
         self._mcd_calls += 1
         seed = self.config.seed * 1_000_003 + self._mcd_calls
-        return self.loss_terms(self.module.net(audio, imu), audio, imu, seed).total
+        terms = self.loss_terms(self.module.net(audio, imu), audio, imu, seed)
+        self._terms.append((float(terms.svdd.detach()), float(terms.rec.detach()), float(terms.reg.detach())))
+        return terms.total
+
+    def _epoch_figures(self) -> dict[str, float]:
+        """The radius R after an epoch and the epoch's mean SVDD, reconstruction and regulariser terms."""
+        means = np.mean(np.asarray(self._terms, dtype=np.float64), axis=0) if self._terms else np.zeros(3)
+        self._terms = []
+        return {"radius": self.radius_, "svdd": means[0], "rec": means[1], "reg": means[2]}
 
     def _val_loss(self, module: nn.Module, tensors: tuple[torch.Tensor, ...]) -> float:
         seed = self.config.seed
@@ -274,6 +290,7 @@ class MSVDD:
             "mean_d": self.mean_d_,
             "mean_rec": self.mean_rec_,
             "threshold": self.threshold_,
+            "history": None if self.history_ is None else self.history_.to_dict(),
         }
         target = Path(path)
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -320,6 +337,8 @@ class MSVDD:
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.threshold_ = float(payload["threshold"])
+        history = payload.get("history")
+        model.history_ = None if history is None else TrainResult.from_dict(history)
         return model
 
     @property

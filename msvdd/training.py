@@ -11,7 +11,7 @@ import copy
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -25,6 +25,8 @@ LossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], torch.Tensor]
 """loss_fn(module, batch) -> scalar loss; batch holds one slice of each training tensor, on the device."""
 ValLossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], float]
 """val_loss_fn(module, val_tensors_on_cpu) -> validation loss (lower is better)."""
+EpochProbe = Callable[[], dict[str, float]]
+"""epoch_probe() -> named figures of the epoch just trained (e.g. the radius), kept in `TrainResult.epochs`."""
 
 
 class TrainConfig(Protocol):
@@ -60,6 +62,31 @@ class TrainResult:
     """Wall time of the loop, s."""
     windows_per_s: float = 0.0
     """Training windows processed per second (forward + backward + step)."""
+    epochs: dict[str, list[float]] = field(default_factory=dict)
+    """Per-epoch figures returned by the epoch probe (name -> one value per epoch)."""
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain lists and numbers, for a weights-only checkpoint."""
+        return {
+            "train_loss": list(self.train_loss),
+            "val_loss": list(self.val_loss),
+            "best_epoch": self.best_epoch,
+            "seconds": self.seconds,
+            "windows_per_s": self.windows_per_s,
+            "epochs": {k: list(v) for k, v in self.epochs.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainResult:
+        """Inverse of `to_dict`."""
+        return cls(
+            train_loss=[float(v) for v in data["train_loss"]],
+            val_loss=[float(v) for v in data["val_loss"]],
+            best_epoch=int(data["best_epoch"]),
+            seconds=float(data["seconds"]),
+            windows_per_s=float(data["windows_per_s"]),
+            epochs={str(k): [float(x) for x in v] for k, v in data["epochs"].items()},
+        )
 
 
 def resolve_device(name: str) -> torch.device:
@@ -112,6 +139,7 @@ def train_network(
     val_tensors: Sequence[torch.Tensor] | None,
     config: TrainConfig,
     val_loss_fn: ValLossFn | None = None,
+    epoch_probe: EpochProbe | None = None,
 ) -> TrainResult:
     """Train `net` (already on the device) in place; keep the weights of the best validation epoch.
 
@@ -122,6 +150,7 @@ def train_network(
         val_tensors: validation tensors, or None (then the last epoch is kept).
         config: batch_size, lr, cosine_decay, epochs, seed, device, progress.
         val_loss_fn: validation loss; default the mean of `loss_fn` over batches of `batch_size`.
+        epoch_probe: called after each epoch's last step; its figures go to `TrainResult.epochs`.
 
     Raises:
         ValueError: fewer training windows than one batch.
@@ -159,6 +188,9 @@ def train_network(
                 scheduler.step()
             epoch_loss += float(loss.detach())
         result.train_loss.append(epoch_loss / steps_per_epoch)
+        if epoch_probe is not None:
+            for key, value in epoch_probe().items():
+                result.epochs.setdefault(key, []).append(float(value))
         if val_tensors is not None and val_tensors[0].shape[0] > 0:
             net.eval()
             v = validate(net, tuple(val_tensors))

@@ -11,10 +11,18 @@ from benchmarks.presets import preset_names
 from benchmarks.runner import run_benchmark
 
 
-def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = "quick") -> None:
+DEFAULT_PRESET = "quick"
+
+
+def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_PRESET) -> None:
     """Options shared by `run` and `demo`."""
-    p.add_argument("--preset", default=default_preset, help=f"dataset preset: {', '.join(preset_names())}")
-    p.add_argument("--seed", type=int, default=0, help="dataset seed")
+    p.set_defaults(default_preset=default_preset)
+    p.add_argument(
+        "--preset",
+        default=None,
+        help=f"dataset preset: {', '.join(preset_names())} (default: {default_preset}; with --data, the dataset's)",
+    )
+    p.add_argument("--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)")
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
     p.add_argument(
         "--methods",
@@ -48,6 +56,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
         args.out,
         preset_name=args.preset,
         seed=args.seed,
+        default_preset=args.default_preset,
         method_names=args.methods,
         data=args.data,
         workers=args.workers,

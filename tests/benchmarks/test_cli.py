@@ -61,6 +61,19 @@ def test_run_end_to_end(tiny_dataset: Path, tmp_path: Path) -> None:
         assert 0.0 <= entry["auc"] <= 1.0
         assert np.isfinite(entry["f1"])
     assert "naive" in results["naive_verdict"]
+    assert (results["preset"], results["seed"]) == ("tiny", 0)  # the dataset's, not a default
+
+
+def test_run_refuses_a_preset_or_seed_the_dataset_was_not_made_with(
+    tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for flag, value, says in (("--seed", "5", "generated with seed 0"), ("--preset", "quick", "preset tiny")):
+        out = tmp_path / f"run{flag}"
+        code = main(["run", flag, value, "--data", str(tiny_dataset), "--out", str(out),
+                     "--methods", "audio-rms", "--no-progress"])  # fmt: skip
+        assert code == 2
+        assert says in capsys.readouterr().err
+        assert not out.exists()
 
 
 def test_bad_input_exits_2_with_a_message(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

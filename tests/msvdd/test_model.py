@@ -61,6 +61,14 @@ def test_save_load_identical(
     np.testing.assert_array_equal(loaded.score(toy_test[0]), small_model.score(toy_test[0]))
     assert loaded.threshold_ == small_model.threshold_
     assert loaded.config == small_model.config
+    # The training history travels with the model (the diagnosis reads R's trajectory from it).
+    assert loaded.history_ == small_model.history_ and loaded.history_ is not None
+    epochs = small_model.config.epochs
+    assert {k: len(v) for k, v in loaded.history_.epochs.items()} == dict.fromkeys(
+        ("radius", "svdd", "rec", "reg"), epochs
+    )
+    kept = loaded.history_.best_epoch  # the weights (R among them) of the best validation epoch are kept
+    assert loaded.history_.epochs["radius"][kept] == pytest.approx(small_model.radius_)
 
 
 def test_load_refuses_other_format_version(small_model: MSVDD, tmp_path: Path) -> None:

@@ -26,7 +26,8 @@ LossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], torch.Tensor]
 ValLossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], float]
 """val_loss_fn(module, val_tensors_on_cpu) -> validation loss (lower is better)."""
 EpochProbe = Callable[[], dict[str, float]]
-"""epoch_probe() -> named figures of the epoch just trained (e.g. the radius), kept in `TrainResult.epochs`."""
+"""epoch_probe() -> named figures of the epoch just trained (e.g. the radius), kept in `TrainResult.epochs`.
+"""
 
 
 class TrainConfig(Protocol):

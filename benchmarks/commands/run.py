@@ -10,7 +10,6 @@ from benchmarks.command import Command
 from benchmarks.presets import preset_names
 from benchmarks.runner import run_benchmark
 
-
 DEFAULT_PRESET = "quick"
 
 
@@ -20,9 +19,12 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_
     p.add_argument(
         "--preset",
         default=None,
-        help=f"dataset preset: {', '.join(preset_names())} (default: {default_preset}; with --data, the dataset's)",
+        help=f"dataset preset: {', '.join(preset_names())} "
+        f"(default: {default_preset}; with --data, the dataset's)",
     )
-    p.add_argument("--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)")
+    p.add_argument(
+        "--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)"
+    )
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
     p.add_argument(
         "--methods",

@@ -14,11 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from msvdd.contract import AUDIO_RATE, IMU_RATE, Windows
+from msvdd.logmel import log_mel_frames
 
 _EPS = 1e-10
-_LOG_MEL_FLOOR = 1e-6
-"""Added to mel energies before the log (about -60 dB re a full-scale frame), so silent bands do not
-turn float rounding into large log swings."""
 
 
 @dataclass(frozen=True)
@@ -57,55 +55,11 @@ IMU_STAT_NAMES: tuple[str, ...] = (
 """Names of the IMU statistics, in feature order (followed by the log band powers)."""
 
 
-def hz_to_mel(f: np.ndarray | float) -> np.ndarray:
-    """HTK mel scale: 2595 log10(1 + f / 700)."""
-    return 2595.0 * np.log10(1.0 + np.asarray(f, dtype=np.float64) / 700.0)
-
-
-def mel_to_hz(m: np.ndarray | float) -> np.ndarray:
-    """Inverse of `hz_to_mel`."""
-    return 700.0 * (10.0 ** (np.asarray(m, dtype=np.float64) / 2595.0) - 1.0)
-
-
-def mel_filterbank(n_mels: int, n_fft: int, sample_rate: float, f_min: float, f_max: float) -> np.ndarray:
-    """(n_mels, n_fft // 2 + 1) triangular filters, unit peak, equally spaced on the mel scale.
-
-    Filter m rises linearly (in Hz) from edge m to edge m + 1 and falls to edge m + 2, where the
-    n_mels + 2 edges are equally spaced in mel between f_min and f_max; between the first and the last
-    centre, neighbouring filters sum to one.
-
-    Raises:
-        ValueError: bad frequencies, or a filter that covers no FFT bin (too many bands for n_fft).
-    """
-    if not 0.0 <= f_min < f_max <= sample_rate / 2:
-        raise ValueError(f"need 0 <= f_min < f_max <= {sample_rate / 2} Hz, got f_min={f_min}, f_max={f_max}")
-    edges = mel_to_hz(np.linspace(hz_to_mel(f_min), hz_to_mel(f_max), n_mels + 2))
-    freqs = np.fft.rfftfreq(n_fft, d=1.0 / sample_rate)
-    lower, centre, upper = edges[:-2, None], edges[1:-1, None], edges[2:, None]
-    rising = (freqs[None, :] - lower) / (centre - lower)
-    falling = (upper - freqs[None, :]) / (upper - centre)
-    bank = np.clip(np.minimum(rising, falling), 0.0, None)
-    empty = np.flatnonzero(bank.sum(axis=1) == 0)
-    if empty.size:
-        raise ValueError(f"mel bands {empty.tolist()} cover no FFT bin: use fewer n_mels or a larger n_fft")
-    return bank
-
-
 def log_mel(audio: np.ndarray, config: FeatureConfig = FeatureConfig()) -> np.ndarray:
     """(N, frames, n_mels) log mel energies of (N, T) or (N, T, C) 4410 Hz audio, channel powers averaged."""
-    x = np.asarray(audio, dtype=np.float32)
-    if x.ndim == 2:
-        x = x[:, :, None]
-    if x.ndim != 3 or x.shape[1] < config.n_fft:
-        raise ValueError(f"audio shape {x.shape}; expected (N, T >= {config.n_fft}) or (N, T, C)")
-    bank = mel_filterbank(config.n_mels, config.n_fft, AUDIO_RATE, config.f_min, config.f_max).astype(
-        np.float32
+    return log_mel_frames(
+        audio, AUDIO_RATE, config.n_fft, config.hop, config.n_mels, config.f_min, config.f_max
     )
-    window = np.hanning(config.n_fft + 1)[:-1].astype(np.float32)
-    frames = np.lib.stride_tricks.sliding_window_view(x, config.n_fft, axis=1)[:, :: config.hop]
-    spectrum = np.fft.rfft(frames * window, axis=-1)
-    power = (spectrum.real**2 + spectrum.imag**2).mean(axis=2)
-    return np.log(power @ bank.T + _LOG_MEL_FLOOR)
 
 
 def audio_features(audio: np.ndarray, config: FeatureConfig = FeatureConfig()) -> np.ndarray:

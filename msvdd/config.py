@@ -6,6 +6,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Self
 
+from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 
@@ -23,6 +24,10 @@ class MSVDDConfig:
     """Dimension of the fused latent space where the ellipsoid lives."""
     fusion: str = "cross_attention"
     """Fusion: "cross_attention" (paper), or the ablation's "concat", "sum", "product"."""
+    audio_frontend: str = "waveform"
+    """Audio input: "waveform" (paper: raw-waveform CRNN) or "logmel" (spectrogram 2-D CNN); see frontend."""
+    imu_input: str = "z"
+    """IMU input: "z" (paper, z-axis velocity) or "all" (z-velocity, accelerometer and gyroscope xyz)."""
     use_audio: bool = True
     """Use the audio modality (False = IMU-only ablation)."""
     use_imu: bool = True
@@ -70,6 +75,13 @@ class MSVDDConfig:
         _check(self.d >= 1, "d", self.d, ">= 1")
         _check(self.s >= 1, "s", self.s, ">= 1")
         _check(self.fusion in FUSIONS, "fusion", self.fusion, " | ".join(FUSIONS))
+        _check(
+            self.audio_frontend in AUDIO_FRONTENDS,
+            "audio_frontend",
+            self.audio_frontend,
+            " | ".join(AUDIO_FRONTENDS),
+        )
+        _check(self.imu_input in IMU_INPUTS, "imu_input", self.imu_input, " | ".join(IMU_INPUTS))
         _check(self.use_audio or self.use_imu, "use_audio/use_imu", False, "at least one modality True")
         _check(len(self.alpha) == 3 and all(a >= 0 for a in self.alpha), "alpha", self.alpha, "3 values >= 0")
         _check(self.eps > 0, "eps", self.eps, "> 0")

@@ -22,14 +22,15 @@ from torch import nn
 
 from msvdd.config import MSVDDConfig
 from msvdd.contract import WindowError, Windows
+from msvdd.frontend import InputNormalizer
 from msvdd.losses import batch_statistics, covariance_regulariser, reconstruction_loss, svdd_loss
 from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
 from msvdd.network import FusionNet, NetOutput
-from msvdd.preprocess import Normalizer, to_tensors
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
-FORMAT_VERSION = 1
-"""Version of the file written by `MSVDD.save`; `load` refuses any other."""
+FORMAT_VERSION = 2
+"""Version of the file written by `MSVDD.save` (2: front-end choice and per-channel statistics, training
+history); `load` also reads version 1 (the paper's waveform and z-velocity), refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
 
@@ -78,7 +79,7 @@ class MSVDD:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.config.seed)
             self.module = _Module(self.config).to(self.device)
-        self.normalizer: Normalizer | None = None
+        self.normalizer: InputNormalizer | None = None
         self.mu_: torch.Tensor | None = None
         self.sigma_: torch.Tensor | None = None
         self.mean_d_ = 1.0
@@ -106,7 +107,7 @@ class MSVDD:
         elif val is not None:
             _check_windows(val, "val")
         self._check_sizes(len(fit_part), 0 if val is None else len(val))
-        self.normalizer = Normalizer.fit(fit_part)
+        self.normalizer = InputNormalizer.fit(fit_part, cfg.audio_frontend, cfg.imu_input)
         train_t = self._tensors(fit_part)
         val_t = None if val is None or len(val) == 0 else self._tensors(val)
         if not cfg.use_mahalanobis:
@@ -143,7 +144,8 @@ class MSVDD:
     def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
         if self.normalizer is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
-        return to_tensors(batch, self.normalizer, self.config.smooth_window, self.config.smooth_polyorder)
+        audio, imu = self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
+        return audio, imu
 
     def _init_center(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
         """Euclidean mode: c = mean initial embedding, entries near 0 pushed to +-eps (Ruff et al.)."""
@@ -321,9 +323,10 @@ class MSVDD:
         if not isinstance(payload, dict) or payload.get("format") != _FORMAT_NAME:
             raise ModelFormatError(f"{source} is not an M-SVDD model file")
         version = payload.get("format_version")
-        if version != FORMAT_VERSION:
+        if version not in (1, FORMAT_VERSION):
             raise ModelFormatError(
-                f"{source} has model format version {version}; this code reads version {FORMAT_VERSION}"
+                f"{source} has model format version {version}; "
+                f"this code reads versions 1 and {FORMAT_VERSION}"
             )
         cfg_dict = dict(payload["config"])
         if device is not None:
@@ -331,7 +334,10 @@ class MSVDD:
         model = cls(MSVDDConfig.from_dict(cfg_dict))
         model.module.load_state_dict(payload["state_dict"])
         model.module.eval()
-        model.normalizer = Normalizer.from_state(payload["normalizer"])
+        state = dict(payload["normalizer"])
+        if version == 1:  # the paper's inputs, one z-velocity statistic
+            state.update(audio_frontend="waveform", imu_input="z")
+        model.normalizer = InputNormalizer.from_state(state)
         model.mu_ = payload["mu"].to(model.device)
         model.sigma_ = payload["sigma"].to(model.device)
         model.mean_d_ = float(payload["mean_d"])

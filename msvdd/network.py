@@ -4,13 +4,16 @@ Shapes (defaults, d = 32, s = 32):
 
 - audio (N, 8820, 2) -> `AudioEncoder` (six strided 1-D convolutions, then an LSTM) -> (N, 49, d) tokens,
   one per 180 audio samples (40.8 ms, matching the 40 ms IMU tokens).
-- imu (N, 400) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM layers) -> (N, 50, d) tokens.
+- or, with the spectrogram front end, log-mel (N, 2, 67, 32) -> `LogMelEncoder` (three 3x3 2-D convolutions,
+  the last two halving the mel axis, then an LSTM over frames) -> (N, 67, d) tokens, one per 29 ms frame.
+- imu (N, 400) (or (N, 400, 7) with all axes) -> frames of 8 samples (40 ms) -> `ImuEncoder` (two LSTM
+  layers) -> (N, 50, d) tokens.
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
   (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
   (mean + max over tokens: a mean alone dilutes a 30 ms impact among 49 tokens), summed and projected
   to s. The ablation variants concatenate, add or multiply the pooled encoder features.
-- `AudioDecoder` (six transposed convolutions) and `ImuDecoder` (LSTM layers) reconstruct the inputs from the
-  encoders' token sequences.
+- `AudioDecoder` (six transposed convolutions), `LogMelDecoder` (a per-frame MLP) and `ImuDecoder` (LSTM
+  layers) reconstruct the inputs from the encoders' token sequences.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import torch
 from torch import nn
 
 from msvdd.contract import AUDIO_LEN, IMU_LEN
+from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_N_MELS, check_frontend
 
 FUSIONS = ("cross_attention", "concat", "sum", "product")
 """Fusion variants: the paper's cross-attention and the three ablation alternatives."""
@@ -37,6 +41,8 @@ IMU_FRAME = 8
 """IMU samples per IMU token (40 ms at 200 Hz)."""
 IMU_TOKENS = IMU_LEN // IMU_FRAME
 """IMU tokens per window (50)."""
+LOGMEL_CHANNELS = (16, 32, 32)
+"""Output channels of the log-mel encoder's three 2-D convolutions."""
 
 
 class NetConfig(Protocol):
@@ -54,6 +60,10 @@ class NetConfig(Protocol):
     def use_imu(self) -> bool: ...
     @property
     def use_reconstruction(self) -> bool: ...
+    @property
+    def audio_frontend(self) -> str: ...
+    @property
+    def imu_input(self) -> str: ...
 
 
 def _conv_padding(stride: int) -> tuple[int, int]:
@@ -88,16 +98,51 @@ class AudioEncoder(nn.Module):
         return tokens
 
 
-class ImuEncoder(nn.Module):
-    """Two LSTM layers over 8-sample IMU frames; (N, 400) -> (N, 50, d) tokens."""
+class LogMelEncoder(nn.Module):
+    """2-D CNN over (channel, frame, mel) and an LSTM over frames; (N, 2, T, M) -> (N, T, d) tokens."""
 
-    def __init__(self, d: int) -> None:
+    def __init__(self, d: int, n_mels: int = LOGMEL_N_MELS) -> None:
         super().__init__()
-        self.lstm = nn.LSTM(IMU_FRAME, d, num_layers=2, batch_first=True)
+        layers: list[nn.Module] = []
+        c_in, width = 2, n_mels
+        for i, c_out in enumerate(LOGMEL_CHANNELS):
+            stride = (1, 1) if i == 0 else (1, 2)
+            layers += [nn.Conv2d(c_in, c_out, 3, stride=stride, padding=1), nn.GELU()]
+            c_in, width = c_out, width if i == 0 else (width + 1) // 2
+        self.convs = nn.Sequential(*layers)
+        self.lstm = nn.LSTM(c_in * width, d, batch_first=True)
+
+    def forward(self, logmel: torch.Tensor) -> torch.Tensor:
+        """logmel (N, 2, T, M) -> tokens (N, T, d)."""
+        h = self.convs(logmel)  # (N, C, T, M')
+        tokens, _ = self.lstm(h.permute(0, 2, 1, 3).flatten(2))
+        return tokens
+
+
+class LogMelDecoder(nn.Module):
+    """A per-frame MLP from each token to that frame's two log-mel spectra; (N, T, d) -> (N, 2, T, M)."""
+
+    def __init__(self, d: int, n_mels: int = LOGMEL_N_MELS) -> None:
+        super().__init__()
+        self.n_mels = n_mels
+        self.mlp = nn.Sequential(nn.Linear(d, 4 * d), nn.GELU(), nn.Linear(4 * d, 2 * n_mels))
+
+    def forward(self, tokens: torch.Tensor) -> torch.Tensor:
+        """tokens (N, T, d) -> log-mel (N, 2, T, M)."""
+        out = self.mlp(tokens)  # (N, T, 2 M)
+        return out.reshape(out.shape[0], out.shape[1], 2, self.n_mels).transpose(1, 2)
+
+
+class ImuEncoder(nn.Module):
+    """Two LSTM layers over 8-sample IMU frames; (N, 400) or (N, 400, C) -> (N, 50, d) tokens."""
+
+    def __init__(self, d: int, channels: int = 1) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(IMU_FRAME * channels, d, num_layers=2, batch_first=True)
 
     def forward(self, imu: torch.Tensor) -> torch.Tensor:
-        """imu (N, 400) -> tokens (N, 50, d)."""
-        frames = imu.reshape(imu.shape[0], -1, IMU_FRAME)
+        """imu (N, 400) or (N, 400, C) -> tokens (N, 50, d)."""
+        frames = imu.reshape(imu.shape[0], IMU_TOKENS, -1)
         tokens, _ = self.lstm(frames)
         return tokens
 
@@ -124,17 +169,19 @@ class AudioDecoder(nn.Module):
 
 
 class ImuDecoder(nn.Module):
-    """Two LSTM layers and a linear read-out of 8 samples per token; (N, 50, d) -> (N, 400)."""
+    """Two LSTM layers and a linear read-out of 8 samples per token; (N, 50, d) -> (N, 400) or (N, 400, C)."""
 
-    def __init__(self, d: int) -> None:
+    def __init__(self, d: int, channels: int = 1) -> None:
         super().__init__()
+        self.channels = channels
         self.lstm = nn.LSTM(d, d, num_layers=2, batch_first=True)
-        self.out = nn.Linear(d, IMU_FRAME)
+        self.out = nn.Linear(d, IMU_FRAME * channels)
 
     def forward(self, tokens: torch.Tensor) -> torch.Tensor:
-        """tokens (N, T_I, d) -> imu (N, 8 T_I)."""
+        """tokens (N, T_I, d) -> imu (N, 8 T_I), or (N, 8 T_I, C) for C > 1 channels."""
         h, _ = self.lstm(tokens)
-        return self.out(h).reshape(tokens.shape[0], -1)
+        out = self.out(h).reshape(tokens.shape[0], -1, self.channels)
+        return out[:, :, 0] if self.channels == 1 else out
 
 
 class CrossAttentionBlock(nn.Module):
@@ -239,9 +286,9 @@ class NetOutput:
     fused_i: torch.Tensor | None
     """(N, d) pooled IMU branch after cross-attention (z_AI)."""
     audio_rec: torch.Tensor | None
-    """(N, 8820, 2) reconstructed audio."""
+    """Reconstructed audio input: (N, 8820, 2) waveform or (N, 2, 67, 32) log-mel."""
     imu_rec: torch.Tensor | None
-    """(N, 400) reconstructed IMU."""
+    """Reconstructed IMU input: (N, 400) or (N, 400, 7)."""
 
 
 class FusionNet(nn.Module):
@@ -250,17 +297,25 @@ class FusionNet(nn.Module):
     def __init__(self, config: NetConfig) -> None:
         super().__init__()
         d, s = config.d, config.s
+        check_frontend(config.audio_frontend, config.imu_input)
         self.use_audio = config.use_audio
         self.use_imu = config.use_imu
-        self.audio_encoder = AudioEncoder(d) if config.use_audio else None
-        self.imu_encoder = ImuEncoder(d) if config.use_imu else None
+        logmel = config.audio_frontend == "logmel"
+        imu_channels = IMU_ALL_CHANNELS if config.imu_input == "all" else 1
+        # Modules are built in this order so that a seed gives the same initial weights as before.
+        self.audio_encoder: nn.Module | None = None
+        if config.use_audio:
+            self.audio_encoder = LogMelEncoder(d) if logmel else AudioEncoder(d)
+        self.imu_encoder = ImuEncoder(d, imu_channels) if config.use_imu else None
         self.fusion = Fusion(d, s, config.fusion, config.use_audio, config.use_imu)
         rec = config.use_reconstruction
-        self.audio_decoder = AudioDecoder(d) if (rec and config.use_audio) else None
-        self.imu_decoder = ImuDecoder(d) if (rec and config.use_imu) else None
+        self.audio_decoder: nn.Module | None = None
+        if rec and config.use_audio:
+            self.audio_decoder = LogMelDecoder(d) if logmel else AudioDecoder(d)
+        self.imu_decoder = ImuDecoder(d, imu_channels) if (rec and config.use_imu) else None
 
     def forward(self, audio: torch.Tensor, imu: torch.Tensor) -> NetOutput:
-        """audio (N, 8820, 2), imu (N, 400), both normalised -> `NetOutput`."""
+        """audio (N, 8820, 2) or log-mel (N, 2, 67, 32), imu (N, 400) or (N, 400, 7), normalised -> output."""
         a_tok = self.audio_encoder(audio) if self.audio_encoder is not None else None
         i_tok = self.imu_encoder(imu) if self.imu_encoder is not None else None
         fused = self.fusion(a_tok, i_tok)

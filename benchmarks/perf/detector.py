@@ -20,9 +20,9 @@ from threadpoolctl import threadpool_limits
 
 from benchmarks.perf.base import PerfStage
 from msvdd.config import MSVDDConfig
+from msvdd.frontend import InputNormalizer
 from msvdd.mcd import min_cov_det
 from msvdd.model import MSVDD
-from msvdd.preprocess import Normalizer, to_tensors
 from msvdd.synthetic import toy_windows
 from msvdd.training import train_network
 
@@ -50,8 +50,9 @@ def _train_rate(quick: bool) -> float:
     n = 128 if quick else 640
     model = MSVDD(MSVDDConfig.paper(epochs=1, progress=False, val_fraction=0.0))
     train, _ = toy_windows(n, 0, seed=1)
-    model.normalizer = Normalizer.fit(train)
-    tensors = to_tensors(train, model.normalizer)
+    cfg = model.config
+    model.normalizer = InputNormalizer.fit(train, cfg.audio_frontend, cfg.imu_input)
+    tensors = model.normalizer.tensors(train, cfg.smooth_window, cfg.smooth_polyorder)
     warm = tuple(t[:128] for t in tensors)
     train_network(model.module, model.batch_loss, warm, None, model.config)
     result = train_network(model.module, model.batch_loss, tensors, None, model.config)

@@ -140,3 +140,51 @@ def test_config_validation() -> None:
         MSVDDConfig.from_dict({"bogus": 1})
     assert MSVDDConfig.from_dict(MSVDDConfig.paper().to_dict()) == MSVDDConfig.paper()
     assert MSVDDConfig.paper().epochs == 40 and MSVDDConfig.paper().alpha == (1.0, 1.0, 0.001)
+
+
+def test_reads_format_version_1_files(
+    small_model: MSVDD, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    # A version-1 file (the paper's waveform and z-velocity; scalar IMU statistics, no front-end names,
+    # no history) scores exactly as the model that wrote it.
+    path = tmp_path / "v1.pt"
+    small_model.save(path)
+    payload = torch.load(path, weights_only=True)
+    state = payload["normalizer"]
+    payload["normalizer"] = {
+        "audio_mean": state["audio_mean"],
+        "audio_std": state["audio_std"],
+        "imu_mean": state["imu_mean"].reshape(()),
+        "imu_std": state["imu_std"].reshape(()),
+    }
+    payload["format_version"] = 1
+    for key in ("audio_frontend", "imu_input"):
+        del payload["config"][key]
+    del payload["history"]
+    torch.save(payload, path)
+    loaded = MSVDD.load(path)
+    np.testing.assert_array_equal(loaded.score(toy_test[0]), small_model.score(toy_test[0]))
+
+
+@pytest.mark.parametrize(
+    ("audio_frontend", "imu_input"), [("logmel", "z"), ("logmel", "all"), ("waveform", "all")]
+)
+def test_front_ends_train_save_and_load(
+    audio_frontend: str,
+    imu_input: str,
+    toy_train: Windows,
+    toy_test: tuple[Windows, np.ndarray],
+    tmp_path: Path,
+) -> None:
+    cfg = MSVDDConfig.tiny(epochs=1, audio_frontend=audio_frontend, imu_input=imu_input)
+    model = MSVDD(cfg).fit(toy_train)
+    scores = model.score(toy_test[0])
+    assert np.all(np.isfinite(scores)) and np.std(scores) > 0
+    model.save(tmp_path / "m.pt")
+    np.testing.assert_array_equal(MSVDD.load(tmp_path / "m.pt").score(toy_test[0]), scores)
+
+
+def test_all_imu_axes_need_imu6(toy_train: Windows) -> None:
+    bare = Windows(audio=toy_train.audio, imu=toy_train.imu)
+    with pytest.raises(WindowError, match="imu6"):
+        MSVDD(MSVDDConfig.tiny(epochs=1, imu_input="all")).fit(bare)

@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from msvdd.config import MSVDDConfig
+from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_FRAMES, LOGMEL_N_MELS
 from msvdd.network import AUDIO_TOKENS, IMU_TOKENS, CrossAttentionBlock, Fusion, FusionNet
 
 
@@ -81,3 +82,30 @@ def test_without_reconstruction_has_no_decoders() -> None:
 def test_bad_fusion() -> None:
     with pytest.raises(ValueError, match="fusion"):
         Fusion(8, 8, "attention")
+
+
+def test_spectrogram_front_end_and_all_imu_axes_shapes() -> None:
+    torch.manual_seed(0)
+    cfg = MSVDDConfig.tiny(d=8, s=6, audio_frontend="logmel", imu_input="all")
+    logmel = torch.randn(3, 2, LOGMEL_FRAMES, LOGMEL_N_MELS)
+    out = FusionNet(cfg)(logmel, torch.randn(3, 400, IMU_ALL_CHANNELS))
+    assert out.z.shape == (3, 6)
+    assert out.audio_tokens is not None and out.audio_tokens.shape == (3, LOGMEL_FRAMES, 8)
+    assert out.imu_tokens is not None and out.imu_tokens.shape == (3, IMU_TOKENS, 8)
+    assert out.audio_rec is not None and out.audio_rec.shape == logmel.shape
+    assert out.imu_rec is not None and out.imu_rec.shape == (3, 400, IMU_ALL_CHANNELS)
+
+
+def test_log_mel_tokens_are_causal_in_time_only_through_the_lstm() -> None:
+    # A change in the last frame cannot change an earlier token (convolutions see +-1 frame, the LSTM runs
+    # forward): the k-th token reads frames <= k + 3 only.
+    torch.manual_seed(0)
+    cfg = MSVDDConfig.tiny(d=8, s=6, audio_frontend="logmel")
+    net = FusionNet(cfg)
+    x = torch.randn(1, 2, LOGMEL_FRAMES, LOGMEL_N_MELS)
+    y = x.clone()
+    y[:, :, -1] += 5.0
+    assert net.audio_encoder is not None
+    a, b = net.audio_encoder(x), net.audio_encoder(y)
+    torch.testing.assert_close(a[:, : LOGMEL_FRAMES - 4], b[:, : LOGMEL_FRAMES - 4])
+    assert not torch.allclose(a[:, -1], b[:, -1])

@@ -89,6 +89,7 @@ TABLE1_METHODS: tuple[str, ...] = (
     "vae-svdd",
     "dagmm",
     "deep-if",
+    "dcase-ae",
     "iforest-early",
     "iforest-late",
     "ocsvm-early",

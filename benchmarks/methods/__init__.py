@@ -5,6 +5,7 @@ det = make("iforest-early", seed=0, scale="quick").fit(train)
 save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("runs/x/model")
 """
 
+from benchmarks.methods import dcase_ae as _dcase_ae
 from benchmarks.methods import deep as _deep
 from benchmarks.methods import deep_if as _deep_if
 from benchmarks.methods import gaussian as _gaussian
@@ -29,6 +30,7 @@ _naive.register_methods()
 _shallow.register_methods()
 _deep.register_methods()
 _deep_if.register_methods()
+_dcase_ae.register_methods()
 _gaussian.register_methods()
 
 __all__ = [

@@ -4,10 +4,19 @@ Early fusion: one model on the concatenated audio and IMU features. Late fusion:
 each modality's scores are z-normalised with the mean and standard deviation of its TRAINING scores and
 the two are averaged. Features are standardised with training statistics first.
 
-Saving: kernel SVDD stores its support vectors and weights. scikit-learn models are not pickled: the file
-stores the standardised training features and the hyper-parameters, and `load` refits deterministically
-(fixed random_state, one thread), then checks that the refit reproduces the stored training scores bit for
-bit; a different scikit-learn version that changes them is refused with a clear error.
+Kernel SVDD (Tax & Duin, 2004) with the RBF kernel IS the one-class SVM (Schölkopf et al., 2001): with
+K(x, x) = 1 the SVDD dual, min a'Ka - a'diag(K) subject to sum a = 1 and 0 <= a <= 1 / (nu n), is the
+one-class SVM dual up to the factor nu n on the weights, and the squared distance to the centre,
+1 - 2 sum_i a_i K(x_i, x) + a'Ka, is a decreasing affine function of the one-class SVM's decision function.
+The paper names no other kernel or setting for its SVDD, so `svdd-*` is fitted as the same scikit-learn
+`OneClassSVM` (same nu, gamma and training rows) as `ocsvm-*`: its scores are identical by construction,
+and the report says so next to the SVDD rows. `tests/benchmarks/test_baselines.py` checks the dual identity
+against an independent QP solve.
+
+Saving: scikit-learn models are not pickled: the file stores the standardised training features and the
+hyper-parameters, and `load` refits deterministically (fixed random_state, one thread), then checks that the
+refit reproduces the stored training scores bit for bit; a different scikit-learn version that changes them
+is refused with a clear error.
 """
 
 from __future__ import annotations
@@ -22,7 +31,6 @@ from sklearn.svm import OneClassSVM
 from benchmarks.features import FeatureConfig, window_features
 from benchmarks.methods._io import ModelFileError
 from benchmarks.methods.base import WindowDetector, check_scale
-from benchmarks.methods.kernel_svdd import KernelSVDD
 from msvdd.contract import Windows
 
 MODELS: tuple[str, ...] = ("iforest", "ocsvm", "svdd")
@@ -30,7 +38,7 @@ MODELS: tuple[str, ...] = ("iforest", "ocsvm", "svdd")
 FUSIONS: tuple[str, ...] = ("early", "late")
 """Feature fusion modes."""
 NU = 0.05
-"""OCSVM nu and SVDD outlier fraction (C = 1 / (nu n)), matching the 95th-percentile threshold."""
+"""OCSVM nu (= the SVDD outlier fraction, C = 1 / (nu n)), matching the 95th-percentile threshold."""
 _STD_FLOOR = 1e-8
 
 
@@ -74,7 +82,6 @@ class _Block:
         self.train_x = np.zeros((0, mean.size))
         self.train_scores = np.zeros(0)
         self.sklearn: IsolationForest | OneClassSVM | None = None
-        self.svdd: KernelSVDD | None = None
         self.rows = (0, 0)
         """(training rows offered, rows the model was fitted on): OCSVM and SVDD subsample above max_train."""
 
@@ -89,29 +96,20 @@ class _Block:
 
     def _fit_model(self, x: np.ndarray) -> None:
         c = self.config
-        if c.model == "svdd":
-            self.svdd = KernelSVDD(nu=NU, max_train=c.max_train, seed=c.seed).fit(x)
-            self.train_x = np.zeros((0, x.shape[1]))
-            self.rows = (self.svdd.n_offered_, self.svdd.n_fit_)
-        else:
-            offered = x.shape[0]
-            if x.shape[0] > c.max_train and c.model == "ocsvm":
+        offered = x.shape[0]
+        if c.model == "iforest":
+            self.sklearn = IsolationForest(n_estimators=c.n_estimators, random_state=c.seed, n_jobs=1).fit(x)
+        else:  # ocsvm, and svdd: the same model (see the module docstring)
+            if x.shape[0] > c.max_train:
                 pick = np.random.default_rng(c.seed).choice(x.shape[0], c.max_train, replace=False)
                 x = x[np.sort(pick)]
-            if c.model == "iforest":
-                self.sklearn = IsolationForest(
-                    n_estimators=c.n_estimators, random_state=c.seed, n_jobs=1
-                ).fit(x)
-            else:
-                self.sklearn = OneClassSVM(kernel="rbf", nu=NU, gamma="scale").fit(x)
-            self.train_x = x
-            self.rows = (offered, x.shape[0])
+            self.sklearn = OneClassSVM(kernel="rbf", nu=NU, gamma="scale").fit(x)
+        self.train_x = x
+        self.rows = (offered, x.shape[0])
         self.train_scores = self.raw_scores(x)
 
     def raw_scores(self, x: np.ndarray) -> np.ndarray:
         """Model scores of standardised rows, higher = more anomalous."""
-        if self.svdd is not None:
-            return self.svdd.score(x)
         if isinstance(self.sklearn, IsolationForest):
             return -self.sklearn.score_samples(x)
         if isinstance(self.sklearn, OneClassSVM):
@@ -125,24 +123,17 @@ class _Block:
             "train_x": self.train_x,
             "train_scores": self.train_scores,
         }
-        if self.svdd is not None:
-            arrays |= {
-                "support": self.svdd.support_,
-                "alpha": self.svdd.alpha_,
-                "svdd_scalars": np.array([self.svdd.gamma_, self.svdd.r2_, self.svdd.aka_]),
-            }
         return {f"{prefix}{k}": v for k, v in arrays.items()}
 
     @classmethod
     def from_state(cls, config: ShallowConfig, prefix: str, arrays: dict[str, np.ndarray]) -> _Block:
         block = cls(config, arrays[f"{prefix}mean"], arrays[f"{prefix}std"])
         block.train_scores = arrays[f"{prefix}train_scores"]
-        if config.model == "svdd":
-            svdd = KernelSVDD(nu=NU, max_train=config.max_train, seed=config.seed)
-            svdd.support_, svdd.alpha_ = arrays[f"{prefix}support"], arrays[f"{prefix}alpha"]
-            svdd.gamma_, svdd.r2_, svdd.aka_ = (float(v) for v in arrays[f"{prefix}svdd_scalars"])
-            block.svdd = svdd
-            return block
+        if f"{prefix}support" in arrays:
+            raise ModelFileError(
+                f"this {config.model} model was saved by the former hand-written SVDD solver, which was "
+                "replaced by scikit-learn's one-class SVM (the same dual); retrain it"
+            )
         stored = block.train_scores
         block._fit_model(arrays[f"{prefix}train_x"])
         if not np.array_equal(block.train_scores, stored):
@@ -223,7 +214,7 @@ class ShallowDetector(WindowDetector):
 _TITLES = {
     "iforest": "Isolation Forest",
     "ocsvm": "one-class SVM (RBF)",
-    "svdd": "kernel SVDD (RBF, SMO dual)",
+    "svdd": "kernel SVDD (RBF): the one-class SVM's model (identical duals), scores equal ocsvm's",
 }
 
 

@@ -1,4 +1,4 @@
-"""Kernel SVDD's QP solution, the shallow and naive baselines, and the registry's save/load errors."""
+"""SVDD = OCSVM with an RBF kernel, the shallow and naive baselines, and the registry's save/load errors."""
 
 from __future__ import annotations
 
@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from scipy.stats import kurtosis, multivariate_normal
+from scipy.optimize import minimize
+from scipy.stats import kurtosis, multivariate_normal, spearmanr
 from sklearn.svm import OneClassSVM
 
 from benchmarks import methods
 from benchmarks.methods import naive
 from benchmarks.methods._io import ModelFileError
 from benchmarks.methods.deep import DAGMM_RIDGE, _center, gmm_energy, gmm_parameters
-from benchmarks.methods.kernel_svdd import KernelSVDD, rbf_kernel, solve_svdd_dual
 from benchmarks.methods.shallow import ShallowConfig, ShallowDetector
 from msvdd.synthetic import toy_windows
 
@@ -25,77 +25,62 @@ def _blob(n: int = 60, seed: int = 0) -> np.ndarray:
     return rng.standard_normal((n, 2)) * np.array([1.0, 0.5])
 
 
-def test_svdd_dual_satisfies_kkt() -> None:
-    x = _blob()
-    c = 1.0 / (0.1 * x.shape[0])
-    k = rbf_kernel(x, x, 0.5)
-    sol = solve_svdd_dual(k, c, tol=1e-9)
-    a = sol.alpha
-    assert sol.converged and sol.gap <= 1e-9
-    assert a.sum() == pytest.approx(1.0, abs=1e-12)
-    assert a.min() >= 0.0 and a.max() <= c
-    free = (a > 1e-9) & (a < c - 1e-9)
-    assert free.sum() >= 1
-    # support vectors strictly inside the box lie on the sphere; a = 0 inside; a = C outside
-    np.testing.assert_allclose(sol.dist2[free], sol.r2, atol=1e-8)
-    assert np.all(sol.dist2[a <= 1e-12] <= sol.r2 + 1e-8)
-    assert np.all(sol.dist2[a >= c - 1e-12] >= sol.r2 - 1e-8)
-    # the distances follow the kernel expansion of the centre
-    np.testing.assert_allclose(sol.dist2, 1.0 - 2.0 * k @ a + a @ k @ a, atol=1e-12)
-    # at most a fraction nu of the points outside the sphere, at least nu are support vectors (Tax & Duin)
-    assert np.mean(sol.dist2 > sol.r2 + 1e-8) <= 0.1 + 1e-12
-    assert np.mean(a > 0) >= 0.1 - 1e-12
+def _rbf(a: np.ndarray, b: np.ndarray, gamma: float) -> np.ndarray:
+    return np.exp(-gamma * ((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=2))
 
 
-def test_svdd_dual_minimises_the_objective() -> None:
-    x = _blob(30, seed=1)
-    k = rbf_kernel(x, x, 1.0)
-    c = 1.0 / (0.2 * 30)
-    sol = solve_svdd_dual(k, c, tol=1e-10)
-
-    def objective(a: np.ndarray) -> float:
-        return float(a @ k @ a - np.diag(k) @ a)
-
-    rng = np.random.default_rng(0)
-    tried = 0
-    for _ in range(500):  # feasible sum-preserving moves never improve on the solution
-        i, j = rng.choice(30, 2, replace=False)
-        a = sol.alpha.copy()
-        t = rng.uniform(0.0, 0.02)
-        a[i] += t
-        a[j] -= t
-        if a.min() >= 0 and a.max() <= c:
-            tried += 1
-            assert objective(a) >= objective(sol.alpha) - 1e-12
-    assert tried > 50
-
-
-def test_svdd_matches_one_class_svm_for_rbf() -> None:
-    # With K_ii = 1 the SVDD and Schölkopf's one-class SVM duals share their minimiser (scaled by nu n).
-    x = _blob(120, seed=2)
-    nu = 0.1
-    model = KernelSVDD(nu=nu, gamma=0.7).fit(x)
-    assert model.solution_ is not None
-    ocsvm = OneClassSVM(kernel="rbf", nu=nu, gamma=0.7, tol=1e-10).fit(x)
+def test_svdd_dual_equals_one_class_svm_for_rbf() -> None:
+    # Why `svdd-*` is fitted as `ocsvm-*`: with K_ii = 1 the SVDD dual (Tax & Duin), min a'Ka - a'diag(K)
+    # with sum a = 1 and 0 <= a <= 1 / (nu n), solved here by a generic QP, has the one-class SVM's
+    # (Schölkopf) minimiser scaled by 1 / (nu n), and the SVDD distance ranks points as the OCSVM does.
+    x = _blob(40, seed=2)
+    nu, gamma = 0.2, 0.7
+    k = _rbf(x, x, gamma)
+    c = 1.0 / (nu * len(x))
+    solved = minimize(
+        lambda a: a @ k @ a - np.diag(k) @ a,
+        np.full(len(x), 1.0 / len(x)),
+        jac=lambda a: 2.0 * k @ a - np.diag(k),
+        bounds=[(0.0, c)] * len(x),
+        constraints=[{"type": "eq", "fun": lambda a: a.sum() - 1.0, "jac": lambda a: np.ones_like(a)}],
+        method="SLSQP",
+        options={"ftol": 1e-14, "maxiter": 1000},
+    )
+    assert solved.success
+    ocsvm = OneClassSVM(kernel="rbf", nu=nu, gamma=gamma, tol=1e-10).fit(x)
     ref = np.zeros(len(x))
     ref[ocsvm.support_] = ocsvm.dual_coef_[0] / (nu * len(x))
-    np.testing.assert_allclose(model.solution_.alpha, ref, atol=1e-5)
-    rng = np.random.default_rng(3)
-    probe = rng.standard_normal((50, 2)) * 2
-    np.testing.assert_allclose(
-        np.corrcoef(model.score(probe), -ocsvm.decision_function(probe))[0, 1], 1.0, atol=1e-8
-    )
+    np.testing.assert_allclose(solved.x, ref, atol=1e-5)
+    probe = np.random.default_rng(3).standard_normal((50, 2)) * 2
+    a = solved.x
+    svdd_dist2 = 1.0 - 2.0 * _rbf(probe, x, gamma) @ a + a @ k @ a
+    ocsvm_score = -ocsvm.decision_function(probe)
+    assert spearmanr(svdd_dist2, ocsvm_score).statistic == pytest.approx(1.0)
+    np.testing.assert_allclose(np.corrcoef(svdd_dist2, ocsvm_score)[0, 1], 1.0, atol=1e-8)
 
 
-def test_svdd_refuses_infeasible_box_and_subsamples() -> None:
-    with pytest.raises(ValueError, match="infeasible"):
-        solve_svdd_dual(np.eye(10), 0.05)
-    with pytest.raises(ValueError, match="nu"):
-        KernelSVDD(nu=0.0)
-    model = KernelSVDD(nu=0.2, max_train=40, seed=1).fit(_blob(100))
-    assert (model.n_offered_, model.n_fit_) == (100, 40)
-    again = KernelSVDD(nu=0.2, max_train=40, seed=1).fit(_blob(100))
-    np.testing.assert_array_equal(model.alpha_, again.alpha_)
+def test_svdd_rows_equal_ocsvm_rows_by_construction() -> None:
+    windows, _ = toy_windows(40, 8, seed=12)
+    train, test = windows.subset(slice(0, 32)), windows.subset(slice(32, None))
+    for fusion in ("early", "late"):
+        svdd = methods.make(f"svdd-{fusion}", seed=0, scale="tiny").fit(train)
+        ocsvm = methods.make(f"ocsvm-{fusion}", seed=0, scale="tiny").fit(train)
+        np.testing.assert_array_equal(svdd.score(test), ocsvm.score(test))
+        assert svdd.threshold_ == ocsvm.threshold_
+
+
+def test_model_of_the_former_svdd_solver_is_refused(tmp_path: Path) -> None:
+    windows, _ = toy_windows(30, 0, seed=13)
+    det = methods.make("svdd-early", seed=0, scale="tiny").fit(windows)
+    path = tmp_path / "model.npz"
+    det.save(path)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["b0_support"] = arrays["b0_train_x"][:3]
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+    with pytest.raises(ModelFileError, match="former hand-written SVDD solver"):
+        ShallowDetector.load(path)
 
 
 def test_naive_statistics_match_closed_forms() -> None:
@@ -206,7 +191,7 @@ def test_registry_lists_every_family_of_the_paper() -> None:
     by_family = {f: methods.names(f) for f in methods.FAMILIES}
     assert sorted(n for v in by_family.values() for n in v) == sorted(methods.names())
     assert {"msvdd", "msvdd-euclidean", "msvdd-s64"} <= set(by_family["msvdd"])
-    assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if"}
+    assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if", "dcase-ae"}
     assert len(by_family["shallow"]) == 6
     assert set(by_family["reference"]) == {"gaussian-early", "gaussian-audio", "gaussian-imu"}
     assert methods.make("msvdd-s64", seed=0, scale="paper").config.batch_size == 128  # type: ignore[attr-defined]

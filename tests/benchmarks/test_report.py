@@ -12,7 +12,7 @@ from benchmarks import methods
 from benchmarks.dataset import WindowRow, open_dataset
 from benchmarks.metrics import compute_metrics
 from benchmarks.pipeline import MethodScores, TrainedModel, score_and_measure, train_method
-from benchmarks.report import RunInfo, auc_intervals, markdown, results_json, write_report
+from benchmarks.report import SVDD_NOTE, RunInfo, auc_intervals, markdown, results_json, write_report
 from benchmarks.uncertainty import auc_interval
 
 INFO = RunInfo("tiny", 0, "data", "msvdd-bench run", "test machine", "2026-01-01", {})
@@ -100,3 +100,14 @@ def test_a_real_tiny_run_reports_intervals_and_differences(
     cell = f"{100 * msvdd_auc['value']:.1f} [{100 * msvdd_auc['low']:.1f}, {100 * msvdd_auc['high']:.1f}]"
     assert cell in text
     assert "ΔAUC vs M-SVDD (%)" in text and "not a ranking" in text and "F1 oracle" in text
+
+
+def test_table1_marks_the_svdd_rows_as_ocsvm_and_labels_the_dcase_baseline() -> None:
+    rows = _rows()
+    kinds = np.array([r.kind for r in rows])
+    names = ("ocsvm-early", "svdd-early", "dcase-ae")
+    per_method = {n: [compute_metrics(_scores(rows, n, 0, 1.0).scores, 0.5, kinds)] for n in names}
+    text = markdown(INFO, per_method)
+    assert "| SVDD † (early fusion) |" in text and "| DCASE AE (log-mel) |" in text
+    assert SVDD_NOTE in text and "duals coincide" in SVDD_NOTE
+    assert SVDD_NOTE not in markdown(INFO, {"dcase-ae": per_method["dcase-ae"]})

@@ -13,6 +13,7 @@ from msvdd.losses import (
     reconstruction_loss,
     svdd_loss,
 )
+from msvdd.mcd import mahalanobis_sq
 
 
 def test_svdd_soft_boundary() -> None:
@@ -68,3 +69,19 @@ def test_batch_statistics_is_mcd_of_support_plus_eps() -> None:
     sigma.trace().backward()
     assert z.grad is not None and float(z.grad[support].abs().sum()) > 0
     assert float(z.grad[~support].abs().sum()) == 0
+
+
+def test_batch_mahalanobis_depends_only_on_the_spectrum_against_eps() -> None:
+    # Why the paper's loss collapses embeddings (the diagnosis of issue 11): over the MCD support the mean
+    # squared distance to the batch's own estimate is tr((S + eps I)^-1 S) = sum_k lambda_k / (lambda_k + eps),
+    # whatever z is. It is about s for any spread-out batch and falls only as eigenvalues sink below eps.
+    g = torch.Generator().manual_seed(0)
+    eps = 1e-3
+    for scale in (1.0, 1e-2, 1e-4):
+        z = scale * torch.randn(64, 8, generator=g, dtype=torch.float64)
+        mu, sigma, support = batch_statistics(z, eps, None, seed=0, n_trials=5)
+        d2 = mahalanobis_sq(z, mu, sigma)
+        lam = torch.linalg.eigvalsh(sigma - eps * torch.eye(8, dtype=torch.float64))
+        expected = float((lam / (lam + eps)).sum())
+        assert float(d2[support].mean()) == pytest.approx(expected, rel=1e-9)
+    assert expected < 0.5  # scale 1e-4: variances 1e-8 << eps, the loss term is nearly 0

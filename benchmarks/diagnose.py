@@ -142,6 +142,24 @@ class GroupTerms:
     """ROC AUC of the full score (None for the normal group)."""
 
 
+WEIGHT_GRID: tuple[float, ...] = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+"""Weights w of the reconstruction term tried by `weight_sweep` (0.01 is the paper's)."""
+
+
+@dataclass(frozen=True)
+class WeightAUC:
+    """The AUCs the score D + w (mean_D / mean_Rec) Rec would have with another w."""
+
+    w: float
+    """Weight of the scaled reconstruction term."""
+    auc: float
+    """ROC AUC, every anomalous test window against the normal ones."""
+    auc_collision: float | None
+    """ROC AUC, collision windows against normal (None without collisions)."""
+    auc_mechanical: float | None
+    """ROC AUC, fault windows against normal (None without faults)."""
+
+
 @dataclass(frozen=True)
 class Encoding:
     """How much of z window loudness and motion explain."""
@@ -178,6 +196,8 @@ class Diagnosis:
     """Spread of z."""
     terms: list[GroupTerms]
     """Score decomposition per test kind and anomaly sub-kind."""
+    weights: list[WeightAUC]
+    """AUCs for each w of `WEIGHT_GRID` (empty without reconstruction): the choice of w, on a dev set."""
     encoding: Encoding
     """What z encodes."""
 
@@ -353,6 +373,23 @@ def decompose(
     return out
 
 
+def weight_sweep(d: np.ndarray, rec: np.ndarray, ratio: float, kinds: Sequence[str]) -> list[WeightAUC]:
+    """AUCs of D + w ratio Rec for every w of `WEIGHT_GRID`; `ratio` = mean_D / mean_Rec of training."""
+    kind_arr = np.asarray(kinds, dtype=str)
+    normal = kind_arr == "normal"
+    out = []
+    for w in WEIGHT_GRID:
+        score = d + w * ratio * rec
+        per_kind = {
+            k: _auc(score[normal], score[kind_arr == k]) if np.any(kind_arr == k) else None
+            for k in ("collision", "mechanical")
+        }
+        out.append(
+            WeightAUC(w, _auc(score[normal], score[~normal]), per_kind["collision"], per_kind["mechanical"])
+        )
+    return out
+
+
 def _spearman(a: np.ndarray, b: np.ndarray) -> float | None:
     if len(a) < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
         return None
@@ -454,6 +491,11 @@ def diagnose(
         sigma=spectrum(model.sigma_.detach().cpu().numpy(), cfg.eps),
         embeddings=embeddings,
         terms=decompose(d, wrec, kinds, sub_kinds, has_rec=cfg.use_reconstruction),
+        weights=(
+            weight_sweep(d, wrec / rec_weight(model), model.mean_d_ / model.mean_rec_, kinds)
+            if cfg.use_reconstruction and rec_weight(model) > 0
+            else []
+        ),
         encoding=encoding(
             z_train, window_covariates(train), d[normal], {k: v[normal] for k, v in cov_test.items()}
         ),
@@ -564,6 +606,19 @@ def diagnosis_markdown(d: Diagnosis) -> str:
             f"| {t.group} | {t.n} | {_f(t.mean_d)} | {_f(t.mean_rec)} | {_pct(t.share_d)} "
             f"| {_pct(t.share_rec)} | {_f(t.auc_d, 3)} | {_f(t.auc_rec, 3)} | {_f(t.auc_score, 3)} |"
         )
+    if d.weights:
+        lines += [
+            "",
+            "The same score with other weights w of the reconstruction term (the model's: "
+            f"{_f(d.config['w'])}; choose w on a dev dataset, never on the reported one):",
+            "",
+            "| w | AUC | AUC collision | AUC mechanical |",
+            "|---:|---:|---:|---:|",
+        ]
+        lines += [
+            f"| {_f(x.w)} | {_f(x.auc, 3)} | {_f(x.auc_collision, 3)} | {_f(x.auc_mechanical, 3)} |"
+            for x in d.weights
+        ]
     e = d.encoding
     lines += [
         "",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sklearn.metrics import roc_auc_score
 
 from benchmarks.cli import main
 from benchmarks.dataset import load_window_rows, open_dataset
@@ -21,6 +22,7 @@ from benchmarks.diagnose import (
     spectrum,
     stratified_subsample,
     summarise_history,
+    weight_sweep,
     window_covariates,
 )
 from msvdd.contract import AUDIO_LEN, IMU_LEN, Windows
@@ -113,6 +115,14 @@ def test_decompose_says_which_term_detects_what() -> None:
     assert mech.share_rec == pytest.approx(3.5 / 4.5)
     no_rec = decompose(d, 0 * wrec, kinds, subs, has_rec=False)
     assert all(t.auc_rec is None for t in no_rec)
+    # The weight sweep: at w = 0 the score is D alone (collisions found, faults at chance); a large w
+    # makes Rec dominate (faults found). Against sklearn on the same scores.
+    sweep = {x.w: x for x in weight_sweep(d, wrec, 1.0, kinds)}
+    assert sweep[0.0].auc_collision == 1.0 and sweep[0.0].auc_mechanical == pytest.approx(0.5)
+    assert sweep[10.0].auc_mechanical == 1.0
+    y = np.array([k != "normal" for k in kinds])
+    for w, x in sweep.items():
+        assert x.auc == pytest.approx(roc_auc_score(y, d + w * wrec))
 
 
 def test_score_terms_sum_to_the_score(tiny_dataset: Path, tiny_model: Path) -> None:

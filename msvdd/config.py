@@ -10,6 +10,8 @@ from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 
+REC_SCORES = ("mean", "peak")
+"""Allowed `rec_score` values."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
 
@@ -44,6 +46,9 @@ class MSVDDConfig:
     """Soft-boundary nu: loss R^2 + 1/(nu N) sum max(0, D^2 - R^2); 1 = the paper's mean."""
     w: float = 0.01
     """Weight of the scaled reconstruction loss in the anomaly score."""
+    rec_score: str = "mean"
+    """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
+    modalities) or "peak" (per modality its largest per-time-step error over its training mean, summed)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4
@@ -87,6 +92,7 @@ class MSVDDConfig:
         _check(self.eps > 0, "eps", self.eps, "> 0")
         _check(0 < self.nu <= 1, "nu", self.nu, "0 < nu <= 1")
         _check(self.w >= 0, "w", self.w, ">= 0")
+        _check(self.rec_score in REC_SCORES, "rec_score", self.rec_score, " | ".join(REC_SCORES))
         _check(self.batch_size >= 2, "batch_size", self.batch_size, ">= 2")
         _check(self.lr > 0, "lr", self.lr, "> 0")
         _check(self.epochs >= 1, "epochs", self.epochs, ">= 1")

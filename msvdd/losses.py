@@ -35,6 +35,18 @@ def huber_per_window(x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
     return err.reshape(err.shape[0], -1).mean(dim=1)
 
 
+def peak_error(x: torch.Tensor, x_hat: torch.Tensor, time_axis: int, block: int = 1) -> torch.Tensor:
+    """(N,) the largest per-time-step Huber error (delta 1) of each window.
+
+    The error is averaged over everything but `time_axis` (channels, mel bands) and over blocks of `block`
+    consecutive time steps, then the maximum over the blocks is taken: a short transient the decoder cannot
+    reproduce stands out instead of being averaged over the window.
+    """
+    err = F.huber_loss(x_hat, x, reduction="none", delta=1.0).movedim(time_axis, 1)
+    steps = err.shape[1] // block
+    return err[:, : steps * block].reshape(err.shape[0], steps, -1).mean(dim=2).amax(dim=1)
+
+
 def reconstruction_loss(
     audio: torch.Tensor | None,
     audio_rec: torch.Tensor | None,

@@ -10,6 +10,7 @@ around a fixed centre c (the mean initial embedding, Ruff et al. 2018) and score
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -23,9 +24,16 @@ from torch import nn
 from msvdd.config import MSVDDConfig
 from msvdd.contract import WindowError, Windows
 from msvdd.frontend import InputNormalizer
-from msvdd.losses import batch_statistics, covariance_regulariser, reconstruction_loss, svdd_loss
+from msvdd.losses import (
+    batch_statistics,
+    covariance_regulariser,
+    huber_per_window,
+    peak_error,
+    reconstruction_loss,
+    svdd_loss,
+)
 from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
-from msvdd.network import FusionNet, NetOutput
+from msvdd.network import AUDIO_STRIDES, FusionNet, NetOutput
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
 FORMAT_VERSION = 2
@@ -33,6 +41,8 @@ FORMAT_VERSION = 2
 history); `load` also reads version 1 (the paper's waveform and z-velocity), refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
+AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
+"""Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
 
 
 class ModelFormatError(ValueError):
@@ -84,6 +94,7 @@ class MSVDD:
         self.sigma_: torch.Tensor | None = None
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
+        self.rec_scale_ = np.ones(2)
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -212,7 +223,12 @@ class MSVDD:
         else:
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
-        d, rec = self._components_tensors(train_t)
+        d, parts = self._distance_and_parts(train_t)
+        if cfg.rec_score == "peak" and parts.shape[1]:
+            self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
+        else:
+            self.rec_scale_ = np.ones(parts.shape[1])
+        rec = self._rec(parts)
         self.mean_d_ = float(d.mean())
         self.mean_rec_ = float(rec.mean()) if cfg.use_reconstruction else 1.0
         if not np.isfinite(self.mean_d_) or self.mean_d_ <= 0 or not np.isfinite(self.mean_rec_):
@@ -231,26 +247,48 @@ class MSVDD:
                 outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
         return torch.cat(outs)
 
-    def _components_tensors(
+    def _rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
+        cfg = self.config
+        pairs = []
+        if cfg.use_audio and out.audio_rec is not None:
+            logmel = cfg.audio_frontend == "logmel"
+            pairs.append((audio, out.audio_rec, 2 if logmel else 1, 1 if logmel else AUDIO_SAMPLES_PER_TOKEN))
+        if cfg.use_imu and out.imu_rec is not None:
+            pairs.append((imu, out.imu_rec, 1, 1))
+        if cfg.rec_score == "mean":
+            return [huber_per_window(x, x_hat) for x, x_hat, _, _ in pairs]
+        return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block in pairs]
+
+    def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
     ) -> tuple[np.ndarray, np.ndarray]:
+        """(D (N,), reconstruction error per modality (N, M); M = 0 without reconstruction)."""
         if self.mu_ is None or self.sigma_ is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
-        cfg = self.config
-        d_all, rec_all = [], []
+        d_all, parts_all = [], []
         with torch.inference_mode():
             for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
                 a, i = a.to(self.device), i.to(self.device)
                 out = self.module.net(a, i)
                 d_all.append(mahalanobis(out.z.to(torch.float64), self.mu_, self.sigma_).cpu())
-                if cfg.use_reconstruction:
-                    rec = reconstruction_loss(
-                        a if cfg.use_audio else None, out.audio_rec, i if cfg.use_imu else None, out.imu_rec
-                    )
-                    rec_all.append(rec.to(torch.float64).cpu())
-                else:
-                    rec_all.append(torch.zeros(a.shape[0], dtype=torch.float64))
-        return torch.cat(d_all).numpy(), torch.cat(rec_all).numpy()
+                parts = self._rec_parts(out, a, i) if self.config.use_reconstruction else []
+                parts_all.append(
+                    torch.stack(parts, dim=1).to(torch.float64).cpu()
+                    if parts
+                    else torch.zeros(a.shape[0], 0, dtype=torch.float64)
+                )
+        return torch.cat(d_all).numpy(), torch.cat(parts_all).numpy()
+
+    def _rec(self, parts: np.ndarray) -> np.ndarray:
+        """The reconstruction term: the modalities' errors (in units of `rec_scale_`) summed; 0 without."""
+        return (parts / self.rec_scale_[: parts.shape[1]]).sum(axis=1)
+
+    def _components_tensors(
+        self, tensors: tuple[torch.Tensor, torch.Tensor]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        d, parts = self._distance_and_parts(tensors)
+        return d, self._rec(parts)
 
     def _delta(self, d: np.ndarray, rec: np.ndarray) -> np.ndarray:
         if not self.config.use_reconstruction:
@@ -291,6 +329,7 @@ class MSVDD:
             "sigma": self.sigma_.cpu(),
             "mean_d": self.mean_d_,
             "mean_rec": self.mean_rec_,
+            "rec_scale": torch.from_numpy(np.asarray(self.rec_scale_, dtype=np.float64)),
             "threshold": self.threshold_,
             "history": None if self.history_ is None else self.history_.to_dict(),
         }
@@ -342,6 +381,7 @@ class MSVDD:
         model.sigma_ = payload["sigma"].to(model.device)
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
+        model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
         model.threshold_ = float(payload["threshold"])
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)

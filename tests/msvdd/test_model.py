@@ -188,3 +188,19 @@ def test_all_imu_axes_need_imu6(toy_train: Windows) -> None:
     bare = Windows(audio=toy_train.audio, imu=toy_train.imu)
     with pytest.raises(WindowError, match="imu6"):
         MSVDD(MSVDDConfig.tiny(epochs=1, imu_input="all")).fit(bare)
+
+
+def test_peak_reconstruction_score_is_in_units_of_training_means(
+    toy_train: Windows, toy_test: tuple[Windows, np.ndarray]
+) -> None:
+    cfg = MSVDDConfig.tiny(
+        epochs=1, audio_frontend="logmel", imu_input="all", rec_score="peak", w=1.0, val_fraction=0.0
+    )
+    model = MSVDD(cfg).fit(toy_train)
+    # Each modality's peak error divided by its training mean: on the training windows the term averages
+    # one per modality, two in all.
+    _, rec = model.score_components(toy_train)
+    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
+    assert model.rec_scale_.shape == (2,) and np.all(model.rec_scale_ > 0)
+    d, rec = model.score_components(toy_test[0])
+    np.testing.assert_allclose(model.score(toy_test[0]), d + (model.mean_d_ / model.mean_rec_) * rec)

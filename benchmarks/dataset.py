@@ -436,6 +436,11 @@ class Dataset:
             out[entry["episode_id"]] = EpisodeSpec(**kw)
         return out
 
+    @property
+    def fingerprint(self) -> str:
+        """`dataset_fingerprint` of the manifest: what identifies this dataset in run reports."""
+        return dataset_fingerprint(self.manifest)
+
     def rows(self, split: str) -> list[WindowRow]:
         """Window rows of one split."""
         return [r for r in self.windows if r.split == split]
@@ -517,6 +522,21 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
             "dev and eval must be generated from different seeds"
         )
     return f"`{dev.path}` (preset {dev_preset}, seed {dev.manifest['seed']})"
+
+
+def dataset_fingerprint(manifest: dict[str, Any]) -> str:
+    """The dataset's identity: sha256 over the sha256 of every file its manifest lists, with their paths.
+
+    Two datasets with the same fingerprint hold the same bytes in every verified file (the window table and
+    every episode file), whatever folder they sit in; the same preset and seed generated with the same
+    software give the same fingerprint. Run reports record it, and `msvdd-bench compare` refuses runs whose
+    fingerprints differ.
+    """
+    entries = [f"windows.csv {manifest['windows']['sha256']}"]
+    for episode in manifest["episodes"]:
+        for name, digest in sorted(episode["files"].items()):
+            entries.append(f"{episode['episode_id']}/{name} {digest}")
+    return hashlib.sha256("\n".join(sorted(entries)).encode()).hexdigest()
 
 
 def verify_dataset(path: Path, manifest: dict[str, Any]) -> None:

@@ -184,6 +184,8 @@ class RunInfo:
     """Mean fit time per method, s."""
     dev: str = ""
     """The dev dataset every choice of the methods was made on (`describe_dev`); empty: none given."""
+    dataset_fingerprint: str = ""
+    """`benchmarks.dataset.dataset_fingerprint` of the evaluated dataset (what `compare` pairs runs by)."""
 
 
 def _fmt(mean: float, std: float, pct: bool = True, with_std: bool = True) -> str:
@@ -264,6 +266,11 @@ def _table(
             lines.append(f"| {shown} | " + " | ".join(cells) + " |")
     return lines
 
+
+_TABLES: tuple[tuple[tuple[str, str], ...], ...] = (
+    COMPARISON, MODULE_ABLATION, FUSION_ABLATION, LATENT_SWEEP, REFERENCE, NAIVE
+)  # fmt: skip
+"""Every fixed table of `results.md`; a method in none of them gets the "other methods" table."""
 
 _DIFF_HEADERS: tuple[str, str] = ("ΔAUC vs M-SVDD (%)", "Δ interval excludes 0")
 """Headers of the paired-difference columns every table gets when M-SVDD is in the run."""
@@ -367,7 +374,8 @@ def markdown(
         "",
         f"- Command: `{info.command}`",
         f"- Date: {info.date}; machine: {info.machine}",
-        f"- Eval dataset: `{info.dataset}` (reported). Dev dataset: "
+        f"- Eval dataset: `{info.dataset}` (reported; fingerprint `{info.dataset_fingerprint or 'n/a'}`)."
+        " Dev dataset: "
         + (f"{info.dev} (every choice a method makes)" if info.dev else "none given (built-in settings)"),
         f"- Test windows: {first.n_normal} normal, {first.n_collision} collision, "
         f"{first.n_mechanical} mechanical",
@@ -402,6 +410,7 @@ def markdown(
         "",
         *_table(NAIVE, per_method, _MAIN_COLUMNS, intervals),
         "",
+        *_other_methods(per_method, intervals),
         naive_verdict(per_method),
         "",
         *differences,
@@ -419,6 +428,22 @@ def markdown(
         "",
     ]
     return "\n".join(out)
+
+
+def _other_methods(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None
+) -> list[str]:
+    """A table of the methods no other table shows (detectors from outside the project), if any."""
+    shown = {m for rows in _TABLES for name, _ in rows for m in _resolve(name, per_method)}
+    others = [m for m in per_method if m not in shown]
+    if not others:
+        return []
+    return [
+        "## Other methods (detectors from outside the project and unlisted registry methods)",
+        "",
+        *_table([(m, f"`{m}`") for m in others], per_method, _MAIN_COLUMNS, intervals),
+        "",
+    ]
 
 
 def _sub_kind_table(
@@ -455,6 +480,7 @@ def results_json(
         "machine": info.machine,
         "date": info.date,
         "dev": info.dev or None,
+        "dataset_sha256": info.dataset_fingerprint or None,
         "oracle_note": "f1_oracle and threshold_oracle are chosen on test labels (oracle); every other "
         "thresholded metric uses the training threshold",
         "methods": {},

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import methods
+from benchmarks.cache import cached_dataset
 from benchmarks.dataset import check_dev, generate, open_dataset
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
@@ -33,6 +34,7 @@ def run_benchmark(
     progress: bool = True,
     dev: Path | None = None,
     default_preset: str = "quick",
+    cache: Path | None = None,
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
@@ -40,11 +42,14 @@ def run_benchmark(
     interrupted run leaves no folder that looks complete. `dev` names the dev dataset the methods'
     choices were made on (checked against the evaluated one and recorded in the report). With `data`, the
     preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
-    without, they default to `default_preset` and 0. Returns `out`.
+    without, they default to `default_preset` and 0. With `cache` (not with `data`), the dataset is taken
+    from that cache folder, generated there first if needed (`benchmarks.cache`). Returns `out`.
     """
     out = Path(out)
     if out.exists():
         raise FileExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
+    if data is not None and cache is not None:
+        raise ValueError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
     if data is not None:
         preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
     preset_name = preset_name or default_preset
@@ -55,6 +60,9 @@ def run_benchmark(
         methods.spec(name)
     chosen_scale = check_scale(scale or preset.method_scale)
     train_seeds = seeds if seeds else list(preset.seeds)
+    if cache is not None:
+        data, reused = cached_dataset(Path(cache), preset_name, seed, workers=workers, progress=progress)
+        print(f"{'reusing' if reused else 'generated'} cached dataset {data}", flush=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
@@ -62,7 +70,7 @@ def run_benchmark(
             data_path = generate(preset_name, seed, tmp / "dataset", workers=workers, progress=progress)
         else:
             data_path = Path(data)
-        dataset = open_dataset(data_path)
+        dataset = open_dataset(data_path, verify=cache is None)  # a cache entry was verified just now
         dev_text = check_dev(open_dataset(Path(dev), verify=False), dataset) if dev is not None else ""
         train, _ = dataset.load_windows("train")
         val = dataset.load_windows("val")[0] if dataset.rows("val") else None
@@ -75,8 +83,8 @@ def run_benchmark(
                         f"training {name} (seed {s}, scale {chosen_scale}) on {len(train)} windows",
                         flush=True,
                     )
-                models.append(train_method(dataset, name, s, chosen_scale, tmp / "models" / f"{name}-seed{s}",
-                                           train=train, val=val))  # fmt: skip
+                folder = tmp / "models" / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
+                models.append(train_method(dataset, name, s, chosen_scale, folder, train=train, val=val))
         scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
         fit_time: dict[str, list[float]] = {}
         for m in models:
@@ -90,6 +98,7 @@ def run_benchmark(
             date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
             train_seconds={k: float(np.mean(v)) for k, v in fit_time.items()},
             dev=dev_text,
+            dataset_fingerprint=dataset.fingerprint,
         )
         write_report(tmp, info, rows, scores, per_method)
         os.replace(tmp, out)

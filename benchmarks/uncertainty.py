@@ -239,6 +239,53 @@ def bootstrap_mean_auc(
     return BootstrapAuc(value, replicates, defined=enough_episodes(clusters, pos))
 
 
+PAUC_MAX_FPR = 0.1
+"""FPR limit of the pAUC, as in run reports (`benchmarks.metrics.compute_metrics`; the DCASE convention)."""
+
+
+def counted_pauc(
+    scores: np.ndarray, positive: np.ndarray, counts: np.ndarray, max_fpr: float = PAUC_MAX_FPR
+) -> float:
+    """pAUC (`benchmarks.metrics.roc_auc` with `max_fpr`) of the windows each repeated `counts` times.
+
+    `counts` are an `episode_draws` replicate (whole numbers): the pAUC of the resampled test set exactly.
+    """
+    from benchmarks.metrics import roc_auc
+
+    reps = np.rint(np.asarray(counts, dtype=np.float64)).astype(np.int64)
+    keep = reps > 0
+    labels = np.repeat(np.asarray(positive, dtype=np.int64)[keep], reps[keep])
+    return roc_auc(labels, np.repeat(np.asarray(scores, dtype=np.float64)[keep], reps[keep]), max_fpr)
+
+
+def bootstrap_mean_pauc(
+    scores: np.ndarray | Sequence[Sequence[float]],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    weights: np.ndarray,
+    max_fpr: float = PAUC_MAX_FPR,
+) -> BootstrapAuc:
+    """`bootstrap_mean_auc` for the pAUC at FPR <= `max_fpr`: seed-mean, on the data and in each replicate.
+
+    `weights` must be `episode_draws` counts; the result's `minus` gives paired pAUC differences.
+    """
+    s = np.atleast_2d(np.asarray(scores, dtype=np.float64))
+    pos = np.asarray(positive, dtype=bool)
+    w = np.atleast_2d(np.asarray(weights, dtype=np.float64))
+    if s.ndim != 2 or s.shape[0] == 0 or s.shape[1] != pos.size or w.shape[1] != pos.size:
+        raise ValueError(f"scores {s.shape}, positive {pos.shape} and weights {w.shape} must match")
+    if np.shape(clusters) != pos.shape:
+        raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
+    if not pos.any() or pos.all():
+        return BootstrapAuc(math.nan, np.full(w.shape[0], math.nan), defined=False)
+    ones = np.ones(pos.size)
+    value = float(np.mean([counted_pauc(row, pos, ones, max_fpr) for row in s]))
+    replicates = np.array(
+        [np.mean([counted_pauc(row, pos, draw, max_fpr) for row in s]) for draw in w], dtype=np.float64
+    )
+    return BootstrapAuc(value, replicates, defined=enough_episodes(clusters, pos))
+
+
 def mean_auc_interval(
     scores: np.ndarray | Sequence[Sequence[float]],
     positive: np.ndarray | Sequence[bool],

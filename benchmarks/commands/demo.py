@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from pathlib import Path
 
@@ -43,7 +44,7 @@ def _run(args: argparse.Namespace) -> int:
         raise
     shutil.rmtree(old, ignore_errors=True)
     print((out / "results.md").read_text())
-    data = args.data or out / "dataset"
+    data = Path(json.loads((out / "results.json").read_text())["dataset"])  # --data, --cache or generated
     model = out / "models" / "msvdd-seed0"
     from benchmarks.viz import log_episode
 

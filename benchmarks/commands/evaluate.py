@@ -50,6 +50,7 @@ def _run(args: argparse.Namespace) -> int:
         date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
         train_seconds={},
         dev=dev,
+        dataset_fingerprint=dataset.fingerprint,
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{args.out.name}.partial-", dir=args.out.parent))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from benchmarks.cache import cached_dataset
 from benchmarks.command import Command
 from benchmarks.dataset import generate, open_dataset
 from benchmarks.presets import preset_names
@@ -13,13 +14,27 @@ from benchmarks.presets import preset_names
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="quick", help=f"dataset preset: {', '.join(preset_names())}")
     p.add_argument("--seed", type=int, default=0, help="dataset seed (same preset and seed, same checksums)")
-    p.add_argument("--out", type=Path, required=True, help="dataset folder to create (must not exist)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--out", type=Path, help="dataset folder to create (must not exist)")
+    where.add_argument(
+        "--cache",
+        type=Path,
+        help="cache folder: generate into DIR/<preset>-seed<seed>-<key> unless a verified copy is there; "
+        "prints the dataset folder's absolute path on the last line",
+    )
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def _run(args: argparse.Namespace) -> int:
-    path = generate(args.preset, args.seed, args.out, workers=args.workers, progress=not args.no_progress)
+    progress = not args.no_progress
+    if args.cache is not None:
+        path, reused = cached_dataset(args.cache, args.preset, args.seed, args.workers, progress)
+        if reused:
+            print(f"reusing cached dataset (verified)\n{path.absolute()}")
+            return 0
+    else:
+        path = generate(args.preset, args.seed, args.out, workers=args.workers, progress=progress)
     dataset = open_dataset(path, verify=False)
     counts: dict[tuple[str, str], int] = {}
     for row in dataset.windows:
@@ -28,6 +43,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"wrote {path}: {len(episodes)} episodes, {len(dataset.windows)} windows")
     for (split, kind), n in sorted(counts.items()):
         print(f"  {split:<5} {kind:<10} {n:>6}")
+    if args.cache is not None:
+        print(path.absolute())
     return 0
 
 

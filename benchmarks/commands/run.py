@@ -30,9 +30,17 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_
         "--methods",
         nargs="+",
         default=None,
-        help="methods to train, or groups: table1, ablations, all (default: the preset's list)",
+        help="methods to train, or groups: table1, ablations, all, or module:Class for a detector of your "
+        "own (importable; see README) (default: the preset's list)",
     )
     p.add_argument("--data", type=Path, default=None, help="reuse this dataset instead of generating one")
+    p.add_argument(
+        "--cache",
+        type=Path,
+        default=None,
+        help="take the preset's dataset from this cache folder, generating it there once (keyed by preset, "
+        "seed and the generating code; reused while its manifest verifies); not with --data",
+    )
     p.add_argument(
         "--dev",
         type=Path,
@@ -67,6 +75,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
         command="msvdd-bench " + " ".join(sys.argv[1:]),
         progress=not args.no_progress,
         dev=args.dev,
+        cache=args.cache,
     )
 
 

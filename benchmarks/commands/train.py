@@ -13,7 +13,11 @@ from benchmarks.pipeline import train_method
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, required=True, help="dataset folder (from `generate`)")
-    p.add_argument("--method", required=True, help="method name (see `msvdd-bench methods`)")
+    p.add_argument(
+        "--method",
+        required=True,
+        help="method name (see `msvdd-bench methods`), or module:Class for a detector of your own",
+    )
     p.add_argument("--out", type=Path, required=True, help="model folder to write")
     p.add_argument("--seed", type=int, default=0, help="training seed")
     p.add_argument(

@@ -15,9 +15,10 @@ from benchmarks.methods._io import ModelFileError, atomic_path, write_text_atomi
 from benchmarks.methods.base import check_scale
 from msvdd.contract import Detector
 
-FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive")
+FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive", "external")
 """Method families: M-SVDD and its ablations, deep baselines, shallow baselines, the audit's reference
-detector (a Gaussian on fixed window statistics), naive sanity baselines."""
+detector (a Gaussian on fixed window statistics), naive sanity baselines, and detectors from outside the
+project (`module:Class`, `benchmarks.methods.external`; never in the registry itself)."""
 
 MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu")
 """Which sensors a method reads."""
@@ -81,10 +82,21 @@ def names(family: str | None = None) -> list[str]:
 
 
 def spec(name: str) -> MethodSpec:
-    """The `MethodSpec` of `name`; ValueError listing the allowed names if unknown."""
-    if name not in _REGISTRY:
-        raise ValueError(f"method {name!r} is unknown; allowed: {', '.join(_REGISTRY)}")
-    return _REGISTRY[name]
+    """The `MethodSpec` of `name`; ValueError listing the allowed names if unknown.
+
+    A name `module:Class` is a detector from outside the project, imported on first use
+    (`benchmarks.methods.external`).
+    """
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    from benchmarks.methods.external import external_spec, is_external
+
+    if is_external(name):
+        return external_spec(name)
+    raise ValueError(
+        f"method {name!r} is unknown; allowed: {', '.join(_REGISTRY)}, "
+        "or module:Class for a detector of your own"
+    )
 
 
 def make(name: str, *, seed: int, scale: str, device: str = "cpu") -> Detector:
@@ -157,8 +169,12 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
             f"{meta_path} has format_version {version}; this code reads {METHOD_FORMAT_VERSION}"
         )
     name = info.get("method")
-    if name not in _REGISTRY:
-        raise ModelFileError(f"{meta_path} names method {name!r}; registered: {', '.join(_REGISTRY)}")
+    if not isinstance(name, str):
+        raise ModelFileError(f"{meta_path} names no method (got {name!r})")
+    try:
+        spec(name)
+    except ValueError as exc:
+        raise ModelFileError(f"{meta_path} names method {name!r}, which cannot be built: {exc}") from exc
     model_path = folder / str(info.get("model_file", MODEL_FILE))
     if not model_path.is_file():
         raise FileNotFoundError(f"{model_path} does not exist (named by {meta_path})")

@@ -7,6 +7,7 @@ import importlib
 import linecache
 import pkgutil
 import sys
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -24,19 +25,55 @@ def _discover() -> list[Command]:
     return found
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps prose, keeps indented lines (examples) as written, and shows a default only where it says
+    something: not for required options, positionals, flags, or a default of None."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return "\n".join(
+            indent + line
+            if line.startswith(" ") or not line
+            else textwrap.fill(line, width, initial_indent=indent, subsequent_indent=indent)
+            for line in text.splitlines()
+        )
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (
+            "%(default)" in text
+            or "(default" in text
+            or action.required
+            or not action.option_strings
+            or default is None
+            or default is argparse.SUPPRESS
+            or isinstance(default, bool)
+        ):
+            return action.help
+        shown = " ".join(map(str, default)) if isinstance(default, list | tuple) else str(default)
+        return f"{text} (default: {shown.replace('%', '%%')})"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser, with one sub-parser per discovered command."""
+    """The full argument parser, with one sub-parser per discovered command.
+
+    Building it imports no heavy package (torch, mujoco, the method registry): commands import those when
+    they run, so that `--help` is fast.
+    """
     parser = argparse.ArgumentParser(
         prog="msvdd-bench",
         description="Simulation-driven audio-IMU anomaly benchmark for wheeled robots (M-SVDD).",
+        epilog="Every command has --help with an example, e.g. msvdd-bench run --help.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for command in _discover():
+        example = "\n".join(f"  {line}" for line in command.example.strip().splitlines())
         p = sub.add_parser(
             command.name,
             help=command.help,
             description=command.description or command.help,
-            formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+            epilog=f"example:\n{example}" if example else None,
+            formatter_class=HelpFormatter,
         )
         command.add_arguments(p)
         p.set_defaults(_run=command.run, _name=command.name)

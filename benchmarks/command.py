@@ -1,10 +1,18 @@
-"""The shape of a `msvdd-bench` subcommand; `benchmarks.cli` discovers them in `benchmarks.commands`."""
+"""The shape of a `msvdd-bench` subcommand; `benchmarks.cli` discovers them in `benchmarks.commands`.
+
+A command module imports only the standard library at the top (heavy packages such as torch, mujoco or
+the method registry inside its `run`), so that `msvdd-bench --help` stays fast.
+"""
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
+
+DEVICES: tuple[str, ...] = ("cpu", "cuda", "auto")
+"""`--device` choices; the same as `benchmarks.methods.registry.DEVICES` (kept here so that building the
+parser does not import the registry and torch; a test checks that they agree)."""
 
 
 @dataclass(frozen=True)
@@ -21,3 +29,20 @@ class Command:
     """Runs the subcommand; returns the process exit code."""
     description: str = ""
     """Longer text shown by `msvdd-bench NAME --help` (defaults to `help`)."""
+    example: str = ""
+    """One or two command lines, one a line, shown under "example:" by `msvdd-bench NAME --help`."""
+
+
+def add_progress_argument(p: argparse.ArgumentParser) -> None:
+    """`--no-progress`: no progress bars (they go to stderr)."""
+    p.add_argument("--no-progress", action="store_true", help="no progress bars (they are on stderr)")
+
+
+def add_device_argument(p: argparse.ArgumentParser) -> None:
+    """`--device`: where the torch methods train and score."""
+    p.add_argument(
+        "--device",
+        choices=DEVICES,
+        default="cpu",
+        help="where the torch methods train and score (auto: CUDA when available); others ignore it",
+    )

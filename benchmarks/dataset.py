@@ -445,13 +445,18 @@ class Dataset:
         """Window rows of one split."""
         return [r for r in self.windows if r.split == split]
 
-    def load_windows(self, split: str) -> tuple[Windows, list[WindowRow]]:
-        """Decimated, cut windows of one split, in window-table order."""
-        return load_window_rows(self.path, self.rows(split))
+    def load_windows(self, split: str, progress: bool = False) -> tuple[Windows, list[WindowRow]]:
+        """Decimated, cut windows of one split, in window-table order (a bar per episode if `progress`)."""
+        return load_window_rows(self.path, self.rows(split), progress=progress, what=f"loading {split}")
 
 
-def load_window_rows(dataset: Path, rows: list[WindowRow]) -> tuple[Windows, list[WindowRow]]:
-    """Read the episodes behind `rows`, decimate their audio and cut the windows (table order kept)."""
+def load_window_rows(
+    dataset: Path, rows: list[WindowRow], progress: bool = False, what: str = "loading windows"
+) -> tuple[Windows, list[WindowRow]]:
+    """Read the episodes behind `rows`, decimate their audio and cut the windows (table order kept).
+
+    `progress` shows a bar over the episodes, described by `what`.
+    """
     if not rows:
         raise DatasetError(f"{dataset}: no windows to load")
     by_episode: dict[str, list[int]] = {}
@@ -460,7 +465,7 @@ def load_window_rows(dataset: Path, rows: list[WindowRow]) -> tuple[Windows, lis
     audio_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
     imu_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
     imu6_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
-    for episode_id, indices in by_episode.items():
+    for episode_id, indices in tqdm(by_episode.items(), desc=what, unit="ep", disable=not progress):
         episode = read_episode(dataset / episode_id)
         audio4410 = preprocess.decimate_audio(episode.audio)
         starts = np.array([rows[i].start_s for i in indices])
@@ -476,8 +481,11 @@ def load_window_rows(dataset: Path, rows: list[WindowRow]) -> tuple[Windows, lis
     )
 
 
-def open_dataset(path: Path, verify: bool = True) -> Dataset:
-    """Open a dataset folder, checking its format version and (by default) every file's sha256."""
+def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dataset:
+    """Open a dataset folder, checking its format version and (by default) every file's sha256.
+
+    `progress` shows a bar over the files while their sha256 is checked.
+    """
     path = Path(path)
     manifest_path = path / "manifest.json"
     if not manifest_path.is_file():
@@ -490,7 +498,7 @@ def open_dataset(path: Path, verify: bool = True) -> Dataset:
             f"{DATASET_FORMAT_VERSION} only; generate the dataset again with `msvdd-bench generate`"
         )
     if verify:
-        verify_dataset(path, manifest)
+        verify_dataset(path, manifest, progress=progress)
     windows_path = path / "windows.csv"
     if not windows_path.is_file():
         raise DatasetError(f"{path}: missing window table windows.csv")
@@ -539,13 +547,13 @@ def dataset_fingerprint(manifest: dict[str, Any]) -> str:
     return hashlib.sha256("\n".join(sorted(entries)).encode()).hexdigest()
 
 
-def verify_dataset(path: Path, manifest: dict[str, Any]) -> None:
-    """Check that every file the manifest lists exists and has its recorded sha256."""
+def verify_dataset(path: Path, manifest: dict[str, Any], progress: bool = False) -> None:
+    """Check that every file the manifest lists exists and has its recorded sha256 (a bar if `progress`)."""
     expected: list[tuple[Path, str]] = [(path / "windows.csv", manifest["windows"]["sha256"])]
     for episode in manifest["episodes"]:
         for name, digest in episode["files"].items():
             expected.append((path / episode["episode_id"] / name, digest))
-    for file, digest in expected:
+    for file, digest in tqdm(expected, desc="verifying sha256", unit="file", disable=not progress):
         if not file.is_file():
             raise DatasetError(f"missing dataset file: {file}")
         if sha256_file(file) != digest:

@@ -432,12 +432,19 @@ def load_msvdd(folder: Path) -> tuple[str, MSVDD]:
     return name, detector
 
 
-def _load(dataset_path: Path, rows: list[WindowRow], index: np.ndarray) -> tuple[Windows, list[WindowRow]]:
-    return load_window_rows(dataset_path, [rows[i] for i in index])
+def _load(
+    dataset_path: Path, rows: list[WindowRow], index: np.ndarray, progress: bool, what: str
+) -> tuple[Windows, list[WindowRow]]:
+    return load_window_rows(dataset_path, [rows[i] for i in index], progress=progress, what=what)
 
 
 def diagnose(
-    model_dir: Path, data_dir: Path, max_windows: int = 3000, seed: int = 0, verify: bool = False
+    model_dir: Path,
+    data_dir: Path,
+    max_windows: int = 3000,
+    seed: int = 0,
+    verify: bool = False,
+    progress: bool = False,
 ) -> Diagnosis:
     """Diagnose the M-SVDD model in `model_dir` on (subsamples of) the dataset in `data_dir`.
 
@@ -447,15 +454,15 @@ def diagnose(
     if max_windows < 20:
         raise ValueError(f"--max-windows must be at least 20, got {max_windows}")
     name, model = load_msvdd(model_dir)
-    dataset = open_dataset(data_dir, verify=verify)
+    dataset = open_dataset(data_dir, verify=verify, progress=progress)
     train_rows, test_rows = dataset.rows("train"), dataset.rows("test")
     test_kinds = [r.kind for r in test_rows]
     if "normal" not in test_kinds or set(test_kinds) == {"normal"}:
         raise ValueError(f"{data_dir}: the test split needs nominal and anomalous windows")
     tr_idx = stratified_subsample(["normal"] * len(train_rows), ["none"] * len(train_rows), max_windows, seed)
     te_idx = stratified_subsample(test_kinds, [r.sub_kind for r in test_rows], max_windows, seed + 1)
-    train, _ = _load(dataset.path, train_rows, tr_idx)
-    test, rows = _load(dataset.path, test_rows, te_idx)
+    train, _ = _load(dataset.path, train_rows, tr_idx, progress, "loading train")
+    test, rows = _load(dataset.path, test_rows, te_idx, progress, "loading test")
     kinds, sub_kinds = [r.kind for r in rows], [r.sub_kind for r in rows]
 
     cfg = model.config

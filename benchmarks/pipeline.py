@@ -58,13 +58,19 @@ def train_method(
     out: Path,
     train: Windows | None = None,
     val: Windows | None = None,
+    device: str = "cpu",
+    progress: bool | None = None,
 ) -> TrainedModel:
-    """Fit method `name` on the dataset's train windows (val for model selection) and save it to `out`."""
+    """Fit method `name` on the dataset's train windows (val for model selection) and save it to `out`.
+
+    `device` is where a torch method trains; `progress` shows the bars of loading the windows and of
+    training (None: no loading bar, the method's own training default).
+    """
     if train is None:
-        train, _ = dataset.load_windows("train")
+        train, _ = dataset.load_windows("train", progress=bool(progress))
     if val is None and dataset.rows("val"):
-        val, _ = dataset.load_windows("val")
-    detector = methods.make(name, seed=seed, scale=scale)
+        val, _ = dataset.load_windows("val", progress=bool(progress))
+    detector = methods.make(name, seed=seed, scale=scale, device=device, progress=progress)
     started = time.perf_counter()
     detector.fit(train, val)
     elapsed = time.perf_counter() - started
@@ -72,7 +78,7 @@ def train_method(
     return TrainedModel(name, seed, detector, path, elapsed)
 
 
-def test_windows(dataset: Dataset) -> tuple[Windows, list[WindowRow]]:
+def test_windows(dataset: Dataset, progress: bool = False) -> tuple[Windows, list[WindowRow]]:
     """The test windows; refuses a test split without anomalies or without nominal windows."""
     rows = dataset.rows("test")
     kinds = {r.kind for r in rows}
@@ -81,7 +87,7 @@ def test_windows(dataset: Dataset) -> tuple[Windows, list[WindowRow]]:
             f"{dataset.path}: the test split needs nominal and anomalous windows; "
             f"it has kinds {sorted(kinds)}"
         )
-    return dataset.load_windows("test")
+    return dataset.load_windows("test", progress=progress)
 
 
 def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, np.ndarray]:
@@ -117,7 +123,9 @@ def score_and_measure(
     e_episode, e_onset = event_onsets(dataset, rows)
     all_scores: list[MethodScores] = []
     per_method: dict[str, list[MethodMetrics]] = {}
-    for model in tqdm(models, desc="scoring", unit="model", disable=not progress):
+    bar = tqdm(models, desc="scoring", unit="model", disable=not progress)
+    for model in bar:
+        bar.set_postfix_str(f"{model.method} seed {model.seed}")
         scores = np.asarray(model.detector.score(windows), dtype=np.float64)
         threshold = float(model.detector.threshold_)
         all_scores.append(MethodScores(model.method, model.seed, scores, threshold))

@@ -242,6 +242,11 @@ def _resolve(name: str, available: Mapping[str, object]) -> list[str]:
     return [n for n in (f"{name}-early", f"{name}-late") if n in available]
 
 
+def _row_label(name: str, label: str, method: str) -> str:
+    """A table row's label for `method`: the row's own, or with the fusion of its -early/-late variant."""
+    return label if method == name else f"{label} ({method.rsplit('-', 1)[1]} fusion)"
+
+
 def _table(
     rows: Sequence[tuple[str, str]],
     per_method: Mapping[str, Sequence[MethodMetrics]],
@@ -255,7 +260,7 @@ def _table(
     for name, label in rows:
         for method in _resolve(name, per_method):
             agg = aggregate(per_method[method])
-            shown = label if method == name else f"{label} ({method.rsplit('-', 1)[1]} fusion)"
+            shown = _row_label(name, label, method)
             cells = [
                 _auc_cell(intervals, method, key) or _fmt(*agg.get(key, (math.nan, 0.0)), pct=pct)
                 for key, _, pct in columns
@@ -271,6 +276,25 @@ _TABLES: tuple[tuple[tuple[str, str], ...], ...] = (
     COMPARISON, MODULE_ABLATION, FUSION_ABLATION, LATENT_SWEEP, REFERENCE, NAIVE
 )  # fmt: skip
 """Every fixed table of `results.md`; a method in none of them gets the "other methods" table."""
+
+PAPER_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
+    ("Table I", COMPARISON),
+    ("Table II", MODULE_ABLATION),
+    ("Table III", FUSION_ABLATION),
+    ("latent-s figure", LATENT_SWEEP),
+)
+"""The paper's tables (and its latent-dimension figure) that `results.md` reproduces, with their rows."""
+
+
+def paper_rows(method: str) -> list[str]:
+    """Where `method` appears in the paper, e.g. `["Table I: IF (early fusion)"]`; empty if nowhere."""
+    return [
+        f"{table}: {_row_label(name, label, method).replace('*', '')}"
+        for table, rows in PAPER_TABLES
+        for name, label in rows
+        if _resolve(name, {method: None}) == [method]
+    ]
+
 
 _DIFF_HEADERS: tuple[str, str] = ("ΔAUC vs M-SVDD (%)", "Δ interval excludes 0")
 """Headers of the paired-difference columns every table gets when M-SVDD is in the run."""

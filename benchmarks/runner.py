@@ -35,6 +35,7 @@ def run_benchmark(
     dev: Path | None = None,
     default_preset: str = "quick",
     cache: Path | None = None,
+    device: str = "cpu",
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
@@ -43,7 +44,8 @@ def run_benchmark(
     choices were made on (checked against the evaluated one and recorded in the report). With `data`, the
     preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
     without, they default to `default_preset` and 0. With `cache` (not with `data`), the dataset is taken
-    from that cache folder, generated there first if needed (`benchmarks.cache`). Returns `out`.
+    from that cache folder, generated there first if needed (`benchmarks.cache`). `device` is where the
+    torch methods train and score; `progress` shows every bar, training ones included. Returns `out`.
     """
     out = Path(out)
     if out.exists():
@@ -70,11 +72,12 @@ def run_benchmark(
             data_path = generate(preset_name, seed, tmp / "dataset", workers=workers, progress=progress)
         else:
             data_path = Path(data)
-        dataset = open_dataset(data_path, verify=cache is None)  # a cache entry was verified just now
+        # a cache entry was verified just now
+        dataset = open_dataset(data_path, verify=cache is None, progress=progress)
         dev_text = check_dev(open_dataset(Path(dev), verify=False), dataset) if dev is not None else ""
-        train, _ = dataset.load_windows("train")
-        val = dataset.load_windows("val")[0] if dataset.rows("val") else None
-        test = test_windows(dataset)
+        train, _ = dataset.load_windows("train", progress=progress)
+        val = dataset.load_windows("val", progress=progress)[0] if dataset.rows("val") else None
+        test = test_windows(dataset, progress=progress)
         models: list[TrainedModel] = []
         for name in names:
             for s in train_seeds:
@@ -84,7 +87,11 @@ def run_benchmark(
                         flush=True,
                     )
                 folder = tmp / "models" / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
-                models.append(train_method(dataset, name, s, chosen_scale, folder, train=train, val=val))
+                models.append(
+                    train_method(
+                        dataset, name, s, chosen_scale, folder, train, val, device=device, progress=progress
+                    )
+                )
         scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
         fit_time: dict[str, list[float]] = {}
         for m in models:

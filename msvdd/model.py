@@ -358,7 +358,9 @@ class MSVDD:
         try:
             payload = torch.load(source, map_location="cpu", weights_only=True)
         except Exception as err:
-            raise ModelFormatError(f"{source} is not a readable M-SVDD model file: {err}") from err
+            raise ModelFormatError(
+                f"{source} is not an M-SVDD model file (expected a file written by MSVDD.save)"
+            ) from err
         if not isinstance(payload, dict) or payload.get("format") != _FORMAT_NAME:
             raise ModelFormatError(f"{source} is not an M-SVDD model file")
         version = payload.get("format_version")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks.command import Command
+from benchmarks.command import Command, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -13,7 +13,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--out", type=Path, default=None, help="folder for audit.json and audit.md (default: DATASET-audit)"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -33,9 +33,9 @@ COMMAND = Command(
     help="check a dataset for shortcuts (behaviour, naive levels, deleted sound, leaks, clipping)",
     description=(
         "Score the dataset's test windows with shortcut probes and a reference detector and compare each "
-        "figure with its limit. Exit status: 0 every probe passes, 1 a probe is over its limit, 2 bad input. "
-        "Example: msvdd-bench audit runs/paper/dataset --out runs/paper/audit"
+        "figure with its limit. Exit status: 0 every probe passes, 1 a probe is over its limit, 2 bad input."
     ),
+    example="msvdd-bench audit runs/paper-eval --out runs/paper-eval-audit",
     add_arguments=_add_arguments,
     run=_run,
 )

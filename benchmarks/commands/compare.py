@@ -7,8 +7,7 @@ import json
 from pathlib import Path
 
 from benchmarks.command import Command
-from benchmarks.methods._io import write_text_atomic
-from benchmarks.regression import (
+from benchmarks.regression import (  # numpy only: light enough for building the parser
     DEFAULT_GATE,
     DEFAULT_MAX_DROP,
     METRICS,
@@ -67,6 +66,8 @@ def _run(args: argparse.Namespace) -> int:
     comparison = compare_runs(baseline, candidate, pairs, config)
     print(markdown_table(comparison))
     if args.json is not None:
+        from benchmarks.methods._io import write_text_atomic
+
         write_text_atomic(args.json, json.dumps(to_json(comparison), indent=2) + "\n")
     return comparison.exit_code
 
@@ -77,4 +78,5 @@ COMMAND = Command(
     add_arguments=_add_arguments,
     run=_run,
     description=DESCRIPTION,
+    example="msvdd-bench compare runs/baseline runs/candidate --json runs/compare.json",
 )

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from benchmarks.command import Command
 from benchmarks.commands.run import add_run_arguments, run_from_args
-from benchmarks.dataset import open_dataset
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -19,6 +18,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _pick_episodes(data: Path) -> list[str]:
     """One collision episode and one fault episode of the test split."""
+    from benchmarks.dataset import open_dataset
+
     dataset = open_dataset(data, verify=False)
     chosen: list[str] = []
     for kind in ("collision", "mechanical"):
@@ -64,4 +65,5 @@ COMMAND = Command(
     help="run the benchmark on the quick preset and write Rerun recordings of a collision and a fault",
     add_arguments=_add_arguments,
     run=_run,
+    example="msvdd-bench demo --out runs/demo --replace",
 )

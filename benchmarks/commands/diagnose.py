@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks.command import Command
-from benchmarks.diagnose import diagnose, diagnosis_markdown, write_diagnosis
+from benchmarks.command import Command, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,10 +19,15 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the subsampling")
     p.add_argument("--verify", action="store_true", help="check every dataset file's sha256 first")
+    add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
-    result = diagnose(args.model, args.data, args.max_windows, args.seed, verify=args.verify)
+    from benchmarks.diagnose import diagnose, diagnosis_markdown, write_diagnosis
+
+    result = diagnose(
+        args.model, args.data, args.max_windows, args.seed, verify=args.verify, progress=not args.no_progress
+    )
     write_diagnosis(result, args.out if args.out is not None else args.model / "diagnosis")
     print(diagnosis_markdown(result))
     return 0
@@ -40,4 +44,5 @@ COMMAND = Command(
         "kind and sub-kind (with their AUCs), and how much of z window loudness and motion explain. Writes "
         "diagnosis.json and diagnosis.md into --out and prints the markdown."
     ),
+    example="msvdd-bench diagnose runs/demo/models/msvdd-seed0 --data runs/demo/dataset",
 )

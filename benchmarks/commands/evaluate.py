@@ -10,12 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks import methods
-from benchmarks.command import Command
-from benchmarks.dataset import check_dev, open_dataset
-from benchmarks.pipeline import TrainedModel, score_and_measure
-from benchmarks.report import RunInfo, write_report
-from benchmarks.runner import machine_description
+from benchmarks.command import Command, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,19 +23,30 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="the dev dataset (same preset, another seed) the models' choices were made on; recorded",
     )
+    add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from benchmarks import methods
+    from benchmarks.dataset import check_dev, open_dataset
+    from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows
+    from benchmarks.report import RunInfo, write_report
+    from benchmarks.runner import machine_description
+
+    progress = not args.no_progress
     if args.out.exists():
         raise FileExistsError(f"run folder exists already: {args.out}")
-    dataset = open_dataset(args.data)
+    dataset = open_dataset(args.data, progress=progress)
     dev = check_dev(open_dataset(args.dev, verify=False), dataset) if args.dev is not None else ""
     models: list[TrainedModel] = []
-    for folder in args.model:
+    for folder in tqdm(args.model, desc="loading models", unit="model", disable=not progress):
         name, detector = methods.load_detector(folder)
         run_index = sum(1 for m in models if m.method == name)  # the "seed" column counts runs of a method
         models.append(TrainedModel(name, run_index, detector, Path(folder), float("nan")))
-    scores, per_method, rows = score_and_measure(dataset, models)
+    test = test_windows(dataset, progress=progress)
+    scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
     info = RunInfo(
         preset=str(dataset.preset.name),
         dataset_seed=int(dataset.manifest["seed"]),
@@ -55,6 +61,8 @@ def _run(args: argparse.Namespace) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{args.out.name}.partial-", dir=args.out.parent))
     try:
+        if progress:
+            print("writing the report (bootstrap intervals, ROC figures)", file=sys.stderr, flush=True)
         write_report(tmp, info, rows, scores, per_method)
         os.replace(tmp, args.out)
     except BaseException:
@@ -69,4 +77,8 @@ COMMAND = Command(
     help="score saved models on the test windows; write results.json, scores.csv, results.md, ROC figures",
     add_arguments=_add_arguments,
     run=_run,
+    example=(
+        "msvdd-bench evaluate --data runs/demo/dataset --model runs/demo/models/msvdd-seed0 "
+        "--out runs/demo-eval"
+    ),
 )

@@ -5,14 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks.cache import cached_dataset
-from benchmarks.command import Command
-from benchmarks.dataset import generate, open_dataset
-from benchmarks.presets import preset_names
+from benchmarks.command import Command, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--preset", default="quick", help=f"dataset preset: {', '.join(preset_names())}")
+    p.add_argument("--preset", default="quick", help="dataset preset (see `msvdd-bench presets`)")
     p.add_argument("--seed", type=int, default=0, help="dataset seed (same preset and seed, same checksums)")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--out", type=Path, help="dataset folder to create (must not exist)")
@@ -23,10 +20,13 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         "prints the dataset folder's absolute path on the last line",
     )
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from benchmarks.cache import cached_dataset
+    from benchmarks.dataset import generate, open_dataset
+
     progress = not args.no_progress
     if args.cache is not None:
         path, reused = cached_dataset(args.cache, args.preset, args.seed, args.workers, progress)
@@ -53,4 +53,5 @@ COMMAND = Command(
     help="simulate and render a dataset (episodes, windows.csv, manifest.json) from a preset",
     add_arguments=_add_arguments,
     run=_run,
+    example="msvdd-bench generate --preset quick --seed 0 --out runs/quick-seed0",
 )

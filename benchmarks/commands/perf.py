@@ -16,11 +16,16 @@ from benchmarks.command import Command
 from benchmarks.perf.base import PerfStage
 
 
+def stage_modules() -> list[str]:
+    """The modules of `benchmarks.perf` that may hold a stage (not imported: they import torch and mujoco)."""
+    return sorted(m.name for m in pkgutil.iter_modules(perf.__path__) if m.name != "base")
+
+
 def stages() -> dict[str, PerfStage]:
     """Every registered stage, by name."""
     found: dict[str, PerfStage] = {}
-    for info in sorted(pkgutil.iter_modules(perf.__path__), key=lambda m: m.name):
-        module = importlib.import_module(f"{perf.__name__}.{info.name}")
+    for name in stage_modules():
+        module = importlib.import_module(f"{perf.__name__}.{name}")
         stage = getattr(module, "STAGE", None)
         if isinstance(stage, PerfStage):
             found[stage.name] = stage
@@ -28,7 +33,12 @@ def stages() -> dict[str, PerfStage]:
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stage", default="all", help="sim, audio, detector, generate or all")
+    p.add_argument(
+        "--stage",
+        default="all",
+        choices=[*stage_modules(), "all"],
+        help="the stage to measure (each stage is named after its module in benchmarks/perf/)",
+    )
     p.add_argument("--json", type=Path, required=True, help="where to write the figures")
     p.add_argument("--quick", action="store_true", help="tiny workloads (smoke test, figures not meaningful)")
 
@@ -74,4 +84,8 @@ COMMAND = Command(
     help="measure each stage's speed (real-time factors, ratios) and write them to JSON",
     add_arguments=_add_arguments,
     run=_run,
+    example=(
+        "msvdd-bench perf --stage all --json runs/perf.json\n"
+        "msvdd-bench perf --stage sim --quick --json /tmp/perf.json"
+    ),
 )

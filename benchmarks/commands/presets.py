@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 
 from benchmarks.command import Command
-from benchmarks.dataset import plan_episodes
-from benchmarks.presets import get_preset, preset_names
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -14,6 +12,9 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from benchmarks.dataset import plan_episodes
+    from benchmarks.presets import get_preset, preset_names
+
     names = [args.name] if args.name else preset_names()
     for name in names:
         preset = get_preset(name)
@@ -34,7 +35,8 @@ def _run(args: argparse.Namespace) -> int:
 
 COMMAND = Command(
     name="presets",
-    help="list the dataset presets (tiny, quick, paper, hard)",
+    help="list the dataset presets (tiny, quick, paper, hard, ci) and what they contain",
     add_arguments=_add_arguments,
     run=_run,
+    example="msvdd-bench presets\nmsvdd-bench presets quick",
 )

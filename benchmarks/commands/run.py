@@ -6,9 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from benchmarks.command import Command
-from benchmarks.presets import preset_names
-from benchmarks.runner import run_benchmark
+from benchmarks.command import Command, add_device_argument, add_progress_argument
 
 DEFAULT_PRESET = "quick"
 
@@ -19,8 +17,8 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_
     p.add_argument(
         "--preset",
         default=None,
-        help=f"dataset preset: {', '.join(preset_names())} "
-        f"(default: {default_preset}; with --data, the dataset's)",
+        help=f"dataset preset, see `msvdd-bench presets` (default: {default_preset}; with --data, the "
+        "dataset's)",
     )
     p.add_argument(
         "--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)"
@@ -57,11 +55,14 @@ def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_
     p.add_argument(
         "--seeds", type=int, nargs="+", default=None, help="training seeds (default: the preset's)"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_device_argument(p)
+    add_progress_argument(p)
 
 
 def run_from_args(args: argparse.Namespace) -> Path:
     """Run the benchmark as the parsed options say."""
+    from benchmarks.runner import run_benchmark
+
     return run_benchmark(
         args.out,
         preset_name=args.preset,
@@ -76,6 +77,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
         progress=not args.no_progress,
         dev=args.dev,
         cache=args.cache,
+        device=args.device,
     )
 
 
@@ -91,4 +93,8 @@ COMMAND = Command(
     help="generate a dataset, train every method, evaluate and report, in one command",
     add_arguments=add_run_arguments,
     run=_run,
+    example=(
+        "msvdd-bench run --preset quick --seed 0 --out runs/quick\n"
+        "msvdd-bench run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper"
+    ),
 )

@@ -73,4 +73,5 @@ COMMAND = Command(
     help="list scenario presets, obstacle kinds, fault kinds and their parameters",
     add_arguments=_add_arguments,
     run=_run,
+    example="msvdd-bench scenarios --seed 3",
 )

@@ -7,8 +7,6 @@ import time
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-
 from benchmarks.command import Command
 
 
@@ -23,6 +21,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     import sim
 
     if args.seed is not None and args.seed < 0:
@@ -93,4 +93,8 @@ COMMAND = Command(
     help="simulate one scenario (preset or TOML) and write its trace (.npz) with a summary",
     add_arguments=_add_arguments,
     run=_run,
+    example=(
+        "msvdd-bench simulate --preset collision_wall --seed 0 --out /tmp/collision.npz\n"
+        "msvdd-bench simulate --scenario assets/scenarios/fault_bearing.toml --out /tmp/bearing.npz"
+    ),
 )

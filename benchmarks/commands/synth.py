@@ -10,7 +10,6 @@ import tempfile
 from pathlib import Path
 
 from benchmarks.command import Command
-from sim.trace import Trace
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,6 +24,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     # Imported here so that `msvdd-bench --help` stays fast.
+    from sim.trace import Trace
     from synth_audio import Audio, AudioConfig, render, write
     from synth_audio.io import FORMATS
 
@@ -70,4 +70,5 @@ COMMAND = Command(
     help="render a simulated trace (.npz) to binaural audio (.flac/.wav), optionally with per-source stems",
     add_arguments=_add_arguments,
     run=_run,
+    example="msvdd-bench synth --trace /tmp/collision.npz --out /tmp/collision.flac --stems /tmp/stems",
 )

@@ -5,10 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks import methods
-from benchmarks.command import Command
-from benchmarks.dataset import open_dataset
-from benchmarks.pipeline import train_method
+from benchmarks.command import Command, add_device_argument, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -23,15 +20,24 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
     )
+    add_device_argument(p)
+    add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from benchmarks import methods
+    from benchmarks.dataset import open_dataset
+    from benchmarks.pipeline import train_method
+
+    progress = not args.no_progress
     methods.spec(args.method)
     if args.out.exists() and any(args.out.iterdir()):
         raise FileExistsError(f"model folder exists and is not empty: {args.out}")
-    dataset = open_dataset(args.data)
+    dataset = open_dataset(args.data, progress=progress)
     scale = args.scale or dataset.preset.method_scale
-    model = train_method(dataset, args.method, args.seed, scale, args.out)
+    model = train_method(
+        dataset, args.method, args.seed, scale, args.out, device=args.device, progress=progress
+    )
     print(
         f"trained {args.method} (seed {args.seed}, scale {scale}) in {model.train_seconds:.1f} s; "
         f"threshold {model.detector.threshold_:.6g}; saved to {model.path}"
@@ -44,4 +50,8 @@ COMMAND = Command(
     help="fit one method on a dataset's nominal training windows and save it",
     add_arguments=_add_arguments,
     run=_run,
+    example=(
+        "msvdd-bench train --data runs/demo/dataset --method msvdd --out runs/models/msvdd-seed1 --seed 1\n"
+        "msvdd-bench train --data runs/demo/dataset --method iforest-early --out runs/models/iforest"
+    ),
 )

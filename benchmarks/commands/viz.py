@@ -41,4 +41,8 @@ COMMAND = Command(
     help="log one episode (3D scene, sensors, labels, detector scores) to a Rerun recording",
     add_arguments=_add_arguments,
     run=_run,
+    example=(
+        "msvdd-bench viz --data runs/demo/dataset --episode test-collision-000 "
+        "--model runs/demo/models/msvdd-seed0 --save /tmp/collision.rrd"
+    ),
 )

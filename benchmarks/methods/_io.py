@@ -80,14 +80,17 @@ def load_npz(
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"model file {p} does not exist")
+    not_ours = ModelFileError(
+        f"{p} is not a msvdd-bench model file (expected a {kind!r} model: an .npz archive with a JSON header)"
+    )
     try:
         with np.load(p, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
-        raise ModelFileError(f"model file {p} is not a readable .npz model file: {exc}") from exc
-    if _HEADER_KEY not in arrays:
-        raise ModelFileError(f"model file {p} has no header; it was not written by this benchmark")
-    header = json.loads(str(arrays.pop(_HEADER_KEY)))
+        header = json.loads(str(arrays.pop(_HEADER_KEY)))
+    except (OSError, ValueError, KeyError, EOFError) as exc:  # not an .npz, or not ours: no header
+        raise not_ours from exc
+    if not isinstance(header, dict):
+        raise not_ours
     if header.get("kind") != kind:
         raise ModelFileError(f"model file {p} holds a {header.get('kind')!r} model, expected {kind!r}")
     if header.get("format_version") != version:

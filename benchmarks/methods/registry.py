@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import platform
@@ -99,10 +100,12 @@ def spec(name: str) -> MethodSpec:
     )
 
 
-def make(name: str, *, seed: int, scale: str, device: str = "cpu") -> Detector:
+def make(name: str, *, seed: int, scale: str, device: str = "cpu", progress: bool | None = None) -> Detector:
     """An unfitted detector of method `name` for `seed` and training `scale` (tiny, quick or paper).
 
     `device` (cpu, cuda, auto) is where the torch methods train and score; the others ignore it.
+    `progress` turns the training progress bar of the torch methods on or off (None: the scale's
+    default, off at tiny); methods without a bar ignore it.
     """
     method = spec(name)
     check_scale(scale)
@@ -110,7 +113,20 @@ def make(name: str, *, seed: int, scale: str, device: str = "cpu") -> Detector:
         raise ValueError(f"seed must be a non-negative int, got {seed!r}")
     if device not in DEVICES:
         raise ValueError(f"device {device!r} is unknown; allowed: {', '.join(DEVICES)}")
-    return method.factory(seed, scale, device)
+    detector = method.factory(seed, scale, device)
+    if progress is not None:
+        _set_progress(detector, progress)
+    return detector
+
+
+def _set_progress(detector: Detector, progress: bool) -> None:
+    """Set `progress` in the detector's `config` dataclass, if it has such a field (the torch methods:
+    `MSVDDConfig`, `DcaseAEConfig`), which their training loop reads when `fit` runs."""
+    config = getattr(detector, "config", None)
+    if not dataclasses.is_dataclass(config) or isinstance(config, type):
+        return
+    if any(f.name == "progress" for f in dataclasses.fields(config)):
+        detector.config = dataclasses.replace(config, progress=progress)  # type: ignore[attr-defined]
 
 
 def _versions() -> dict[str, str]:
@@ -153,16 +169,26 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
 
     Raises:
         FileNotFoundError: `method.json` or the model file is missing (the message names the path).
-        ModelFileError: another format version, an unknown method, or a malformed `method.json`.
+        ModelFileError: not a model folder, a file that is not ours, another format version, an unknown
+            method, or a malformed `method.json`; always one line naming the file and what was expected.
     """
     folder = Path(directory)
+    if folder.is_file():
+        raise ModelFileError(
+            f"{folder} is not a msvdd-bench model folder (expected a folder written by `msvdd-bench train`, "
+            f"holding {METHOD_FILE} and {MODEL_FILE})"
+        )
     meta_path = folder / METHOD_FILE
     if not meta_path.is_file():
         raise FileNotFoundError(f"{meta_path} does not exist; not a saved model folder (or a partial one)")
     try:
         info = json.loads(meta_path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ModelFileError(f"{meta_path} is not valid JSON: {exc}") from exc
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
+        raise ModelFileError(
+            f"{meta_path} is not a msvdd-bench model file (expected the JSON that `msvdd-bench train` writes)"
+        ) from exc
+    if not isinstance(info, dict):
+        raise ModelFileError(f"{meta_path} is not a msvdd-bench model file (expected a JSON object)")
     version = info.get("format_version")
     if version != METHOD_FORMAT_VERSION:
         raise ModelFileError(
@@ -179,5 +205,16 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
     if not model_path.is_file():
         raise FileNotFoundError(f"{model_path} does not exist (named by {meta_path})")
     cls = type(make(name, seed=0, scale="tiny"))
-    detector: Detector = cls.load(model_path)
+    try:
+        detector: Detector = cls.load(model_path)
+    except ModelFileError:
+        raise  # one line naming the file: not ours, or another kind or format version
+    except (ValueError, KeyError, EOFError) as exc:
+        text = str(exc)
+        if isinstance(exc, ValueError) and "\n" not in text and str(model_path) in text:
+            raise ModelFileError(text) from exc  # the loader's own one-line reason (e.g. a format version)
+        raise ModelFileError(  # a library's long message (torch's advice on weights_only): not for users
+            f"{model_path} is not a msvdd-bench model file (expected the {name!r} model that "
+            "`msvdd-bench train` writes)"
+        ) from exc
     return name, detector

@@ -123,7 +123,7 @@ def test_a_model_file_that_is_not_ours_is_one_line(
 ) -> None:
     noise = os.urandom(4096)
     cases = [
-        (_model_folder(tmp_path, "msvdd", noise), "model.bin is not a msvdd-bench model file (expected"),
+        (_model_folder(tmp_path, "msvdd", noise), "model.bin is not an M-SVDD model file (expected"),
         (
             _model_folder(tmp_path, "iforest-early", noise),
             "model.bin is not a msvdd-bench model file (expected",

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from benchmarks.dataset import DATASET_FORMAT_VERSION, DatasetError, generate, open_dataset
 from benchmarks.episode import software_versions
+from benchmarks.errors import check_seed
 from benchmarks.presets import get_preset
 
 KEY_LENGTH = 16
@@ -87,8 +88,7 @@ def cached_dataset(
     Returns (dataset folder, whether it was reused). A corrupt entry is moved aside, removed and generated
     again; the reason is printed.
     """
-    if seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {seed}")
+    check_seed(seed)
     entry = cache_entry(Path(cache), preset_name, seed)
     if entry.exists():
         try:

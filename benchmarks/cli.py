@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import linecache
 import pkgutil
 import sys
 import textwrap
 from collections.abc import Sequence
-from pathlib import Path
 
 from benchmarks import commands
 from benchmarks.command import Command
+from benchmarks.errors import is_user_error
 
 
 def _discover() -> list[Command]:
@@ -80,39 +79,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_PROJECT_PACKAGES = ("sim", "synth_audio", "msvdd", "benchmarks")
-
-
-def _raised_by_project(exc: BaseException) -> bool:
-    """Whether the error is one the project raised on purpose: a `raise` statement in its own packages.
-
-    A ValueError from inside numpy, torch or scipy (a bug, not bad input) keeps its traceback instead.
-    """
-    tb = exc.__traceback__
-    while tb is not None and tb.tb_next is not None:
-        tb = tb.tb_next
-    if tb is None:
-        return True
-    path = Path(tb.tb_frame.f_code.co_filename)
-    ours = any(part in _PROJECT_PACKAGES for part in path.parts[-4:-1]) and "site-packages" not in path.parts
-    return ours and linecache.getline(str(path), tb.tb_lineno).lstrip().startswith("raise")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of `msvdd-bench`; bad input exits 2 with a message naming what is wrong."""
+    """Entry point of `msvdd-bench`.
+
+    Bad input (`benchmarks.errors.is_user_error`) exits 2 with its one-line message; any other exception
+    is a bug and keeps its traceback.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args._run(args))
-    except (ValueError, FileNotFoundError, FileExistsError, KeyError) as exc:
-        if not _raised_by_project(exc):
-            raise  # a bug inside a library call, not bad input: keep the traceback
-        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"msvdd-bench {args._name}: error: {message}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print(f"msvdd-bench {args._name}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        if not is_user_error(exc):
+            raise
+        print(f"msvdd-bench {args._name}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

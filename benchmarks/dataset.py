@@ -34,6 +34,7 @@ from benchmarks.episode import (
     software_versions,
     write_episode,
 )
+from benchmarks.errors import InputNotFoundError, OutputExistsError, UserError, check_seed
 from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
@@ -65,7 +66,7 @@ MECHANICAL_MIN_FRACTION = 0.5
 """A window is a mechanical-fault window when at least this fraction of it has the fault active."""
 
 
-class DatasetError(ValueError):
+class DatasetError(UserError):
     """A dataset folder is incomplete, corrupt or of another format; the message names the file."""
 
 
@@ -257,7 +258,10 @@ def label_windows(
 
 
 def window_starts(duration_s: float, hop_s: float, first_s: float = SETTLE_S) -> np.ndarray:
-    """Start times of every whole 2 s window at the given hop, from `first_s` (the robot under way)."""
+    """Start times of every whole 2 s window at the given hop, from `first_s` (default: the robot under
+    way; the viewer scores a whole episode from 0); empty if none fits."""
+    if not hop_s > 0:
+        raise UserError(f"hop_s = {hop_s} is invalid; allowed: > 0 s")
     n = int(np.floor((duration_s - WINDOW_S - first_s) / hop_s + 1e-9)) + 1
     return first_s + np.arange(max(n, 0)) * hop_s
 
@@ -330,11 +334,12 @@ def generate(
         progress: show a progress bar.
     """
     preset = get_preset(preset_name)
+    seed = check_seed(seed)
     out = Path(out)
     if out.exists():
-        raise FileExistsError(f"dataset folder exists already: {out} (remove it or choose another --out)")
+        raise OutputExistsError(f"dataset folder exists already: {out} (remove it or choose another --out)")
     if workers is not None and workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {workers}")
+        raise UserError(f"--workers = {workers} is invalid; allowed: an integer >= 1")
     specs = plan_episodes(preset, seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
@@ -489,7 +494,7 @@ def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dat
     path = Path(path)
     manifest_path = path / "manifest.json"
     if not manifest_path.is_file():
-        raise FileNotFoundError(f"not a dataset (no manifest.json): {path}")
+        raise InputNotFoundError(f"not a dataset (no manifest.json): {path}")
     manifest = json.loads(manifest_path.read_text())
     version = manifest.get("format_version")
     if version != DATASET_FORMAT_VERSION:

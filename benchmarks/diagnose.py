@@ -26,6 +26,7 @@ from sklearn.metrics import roc_auc_score
 
 from benchmarks import methods
 from benchmarks.dataset import WindowRow, load_window_rows, open_dataset
+from benchmarks.errors import OutputExistsError, UserError
 from msvdd.contract import Windows
 from msvdd.model import MSVDD
 from msvdd.training import TrainResult
@@ -425,7 +426,7 @@ def load_msvdd(folder: Path) -> tuple[str, MSVDD]:
     name, detector = methods.load_detector(folder)
     if not isinstance(detector, MSVDD):
         family = methods.spec(name).family
-        raise ValueError(
+        raise UserError(
             f"{folder} holds method {name!r} (family {family!r}), not an M-SVDD model; diagnose reads "
             f"the msvdd family only: {', '.join(methods.names('msvdd'))}"
         )
@@ -452,13 +453,13 @@ def diagnose(
         ValueError: not an M-SVDD model, max_windows too small, or a test split without both kinds.
     """
     if max_windows < 20:
-        raise ValueError(f"--max-windows must be at least 20, got {max_windows}")
+        raise UserError(f"--max-windows = {max_windows} is invalid; allowed: an integer >= 20")
     name, model = load_msvdd(model_dir)
     dataset = open_dataset(data_dir, verify=verify, progress=progress)
     train_rows, test_rows = dataset.rows("train"), dataset.rows("test")
     test_kinds = [r.kind for r in test_rows]
     if "normal" not in test_kinds or set(test_kinds) == {"normal"}:
-        raise ValueError(f"{data_dir}: the test split needs nominal and anomalous windows")
+        raise UserError(f"{data_dir}: the test split needs nominal and anomalous windows")
     tr_idx = stratified_subsample(["normal"] * len(train_rows), ["none"] * len(train_rows), max_windows, seed)
     te_idx = stratified_subsample(test_kinds, [r.sub_kind for r in test_rows], max_windows, seed + 1)
     train, _ = _load(dataset.path, train_rows, tr_idx, progress, "loading train")
@@ -655,15 +656,21 @@ OUTPUT_FILES: tuple[str, ...] = ("diagnosis.json", "diagnosis.md")
 """What `write_diagnosis` writes."""
 
 
+def check_output(out: Path) -> None:
+    """Refuse (OutputExistsError) an existing `out` that is not an earlier diagnosis folder."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(p.name not in OUTPUT_FILES for p in out.iterdir())):
+        raise OutputExistsError(f"{out} exists and is not an earlier diagnosis folder; choose another --out")
+
+
 def write_diagnosis(d: Diagnosis, out: Path) -> Path:
     """Write diagnosis.json and diagnosis.md into folder `out` atomically (temp folder, then rename).
 
     An existing `out` holding only those files (an earlier diagnosis) is replaced; any other existing
-    folder is refused (FileExistsError).
+    folder is refused (`check_output`).
     """
     out = Path(out)
-    if out.exists() and (not out.is_dir() or any(p.name not in OUTPUT_FILES for p in out.iterdir())):
-        raise FileExistsError(f"{out} exists and is not an earlier diagnosis folder; choose another --out")
+    check_output(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     old = out.parent / f".{out.name}.old-{tmp.name.rsplit('-', 1)[-1]}"

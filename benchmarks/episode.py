@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 import synth_audio
+from benchmarks.errors import InputNotFoundError, UserError
 from sim.trace import Trace
 from sim.vocab import LABELS, SUB_KINDS
 
@@ -28,7 +29,7 @@ EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "trace.npz", "events.
 """The files of one episode folder."""
 
 
-class EpisodeError(ValueError):
+class EpisodeError(UserError):
     """An episode folder is missing a file, has another format version or is inconsistent."""
 
 
@@ -200,7 +201,7 @@ def read_episode(directory: Path) -> Episode:
     """Read an episode folder; raises EpisodeError naming the missing file or bad version."""
     directory = Path(directory)
     if not directory.is_dir():
-        raise FileNotFoundError(f"episode folder not found: {directory}")
+        raise InputNotFoundError(f"episode folder not found: {directory}")
     for name in EPISODE_FILES:
         if not (directory / name).is_file():
             raise EpisodeError(f"{directory}: missing episode file {name}")

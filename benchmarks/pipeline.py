@@ -15,7 +15,7 @@ import numpy as np
 from tqdm import tqdm
 
 from benchmarks import methods
-from benchmarks.dataset import Dataset, WindowRow
+from benchmarks.dataset import Dataset, DatasetError, WindowRow
 from benchmarks.metrics import MethodMetrics, compute_metrics
 from msvdd.contract import Detector, Windows
 
@@ -83,7 +83,7 @@ def test_windows(dataset: Dataset, progress: bool = False) -> tuple[Windows, lis
     rows = dataset.rows("test")
     kinds = {r.kind for r in rows}
     if "normal" not in kinds or kinds == {"normal"}:
-        raise ValueError(
+        raise DatasetError(
             f"{dataset.path}: the test split needs nominal and anomalous windows; "
             f"it has kinds {sorted(kinds)}"
         )

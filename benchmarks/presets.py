@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from benchmarks.errors import UserError
 from sim.vocab import FAULT_KINDS, OBSTACLE_KINDS
 
 
@@ -64,7 +65,7 @@ class Preset:
     def __post_init__(self) -> None:
         """Refuse an SNR range that is not (low, high) with low <= high."""
         if len(self.snr_db) != 2 or not self.snr_db[0] <= self.snr_db[1]:
-            raise ValueError(
+            raise UserError(
                 f"preset {self.name!r}: snr_db must be a (low, high) range in dB with low <= high, "
                 f"got {self.snr_db}"
             )
@@ -265,8 +266,8 @@ def preset_names() -> list[str]:
 
 
 def get_preset(name: str) -> Preset:
-    """The preset called `name`; ValueError naming the allowed presets otherwise."""
+    """The preset called `name`; a UserError naming the allowed presets otherwise."""
     try:
         return _PRESETS[name]
     except KeyError:
-        raise ValueError(f"unknown preset {name!r}; allowed: {', '.join(_PRESETS)}") from None
+        raise UserError(f"unknown preset {name!r}; allowed: {', '.join(_PRESETS)}") from None

@@ -14,6 +14,7 @@ import numpy as np
 from benchmarks import methods
 from benchmarks.cache import cached_dataset
 from benchmarks.dataset import check_dev, generate, open_dataset
+from benchmarks.errors import OutputExistsError, UserError, check_seed
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import expand_methods, get_preset
@@ -49,13 +50,13 @@ def run_benchmark(
     """
     out = Path(out)
     if out.exists():
-        raise FileExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
+        raise OutputExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
     if data is not None and cache is not None:
-        raise ValueError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
+        raise UserError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
     if data is not None:
         preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
     preset_name = preset_name or default_preset
-    seed = 0 if seed is None else seed
+    seed = 0 if seed is None else check_seed(seed)
     preset = get_preset(preset_name)
     names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
     for name in names:
@@ -120,9 +121,9 @@ def _dataset_identity(data: Path, preset_name: str | None, seed: int | None) -> 
     manifest = open_dataset(data, verify=False).manifest
     ds_preset, ds_seed = str(manifest["preset"]["name"]), int(manifest["seed"])
     if preset_name is not None and preset_name != ds_preset:
-        raise ValueError(f"--preset {preset_name}: dataset {data} was generated with preset {ds_preset}")
+        raise UserError(f"--preset {preset_name}: dataset {data} was generated with preset {ds_preset}")
     if seed is not None and seed != ds_seed:
-        raise ValueError(f"--seed {seed}: dataset {data} was generated with seed {ds_seed}")
+        raise UserError(f"--seed {seed}: dataset {data} was generated with seed {ds_seed}")
     return ds_preset, ds_seed
 
 

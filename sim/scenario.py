@@ -28,6 +28,10 @@ class ScenarioError(ValueError):
     """A scenario field is invalid; the message names the field, the value and what is allowed."""
 
 
+class ScenarioNotFoundError(ScenarioError, FileNotFoundError):
+    """The scenario file named does not exist."""
+
+
 def _fail(name: str, value: Any, allowed: str) -> typing.NoReturn:
     raise ScenarioError(f"{name} = {value!r} is invalid; allowed: {allowed}")
 
@@ -414,10 +418,10 @@ class Scenario:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Scenario:
-        """Load a scenario TOML file; raises FileNotFoundError or ScenarioError naming the problem."""
+        """Load a scenario TOML file; a ScenarioError names the problem (ScenarioNotFoundError: no file)."""
         source = Path(path)
         if not source.is_file():
-            raise FileNotFoundError(f"scenario file not found: {source}")
+            raise ScenarioNotFoundError(f"scenario file not found: {source}")
         try:
             data = tomllib.loads(source.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:

@@ -26,6 +26,10 @@ class TraceError(ValueError):
     """A trace file or trace object is malformed; the message names the field."""
 
 
+class TraceNotFoundError(TraceError, FileNotFoundError):
+    """The trace file named does not exist."""
+
+
 @dataclass(frozen=True)
 class RobotInfo:
     """The simulated robot unit: geometry and drive-train constants the audio stage needs."""
@@ -240,7 +244,7 @@ class Trace:
         """Read a trace written by `save`; raises TraceError naming the file and what is wrong."""
         source = Path(path)
         if not source.is_file():
-            raise FileNotFoundError(f"trace file not found: {source}")
+            raise TraceNotFoundError(f"trace file not found: {source}")
         try:
             with np.load(source, allow_pickle=False) as data:
                 arrays = {key: data[key] for key in data.files}

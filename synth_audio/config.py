@@ -28,9 +28,6 @@ STEM_NAMES: tuple[str, ...] = (
 )
 """Per-source stems an `Audio` can carry; their sum is the mix before the output limiter."""
 
-ROBOT_STEMS: tuple[str, ...] = ("motor", "rolling", "transients", "impacts", "faults", "electronics", "room")
-"""Stems that are the robot's own sound (the `snr_db` signal); the rest is environment and microphone."""
-
 
 MUTABLE_SOURCES: tuple[str, ...] = ("transients", "impacts", "faults")
 """Source groups `AudioConfig.muted` can leave out (the audit deletes the anomaly's own sound this way)."""

@@ -85,7 +85,3 @@ class Room:
     def apply(self, send: np.ndarray) -> np.ndarray:
         """(2, n) reverberation of a mono full-rate send."""
         return self.wet(self.send_spectrum(send))
-
-    def apply_low(self, send: np.ndarray) -> np.ndarray:
-        """(2, n) full-rate reverberation of a mono send sampled at sample_rate / DECIMATION."""
-        return self.wet(self.send_spectrum_low(send))

@@ -49,7 +49,7 @@ from benchmarks.audit.report import (
     AuditResult,
     ProbeRow,
 )
-from benchmarks.dataset import Dataset, WindowRow, episode_audio_config, open_dataset
+from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_config, open_dataset
 from benchmarks.episode import read_episode
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
@@ -252,7 +252,7 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     episodes = np.array([r.episode for r in got.rows])
     normal = kinds == "normal"
     if not normal.any() or normal.all():
-        raise ValueError(f"{data.path}: the test split needs nominal and anomalous windows to audit")
+        raise DatasetError(f"{data.path}: the test split needs nominal and anomalous windows to audit")
     rows: list[ProbeRow] = []
     targets = _targets(kinds, subs)
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from benchmarks.command import Command
 from benchmarks.commands.run import add_run_arguments, run_from_args
+from benchmarks.errors import OutputExistsError
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,7 +35,9 @@ def _run(args: argparse.Namespace) -> int:
     old = out.with_name(f".{out.name}.old")
     if out.exists():
         if not args.replace:
-            raise FileExistsError(f"run folder exists already: {out} (pass --replace to run the demo again)")
+            raise OutputExistsError(
+                f"run folder exists already: {out} (pass --replace to run the demo again)"
+            )
         shutil.rmtree(old, ignore_errors=True)
         out.rename(old)
     try:

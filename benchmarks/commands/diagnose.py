@@ -23,12 +23,14 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from benchmarks.diagnose import diagnose, diagnosis_markdown, write_diagnosis
+    from benchmarks.diagnose import check_output, diagnose, diagnosis_markdown, write_diagnosis
 
+    out = args.out if args.out is not None else args.model / "diagnosis"
+    check_output(out)  # before the work, not after it
     result = diagnose(
         args.model, args.data, args.max_windows, args.seed, verify=args.verify, progress=not args.no_progress
     )
-    write_diagnosis(result, args.out if args.out is not None else args.model / "diagnosis")
+    write_diagnosis(result, out)
     print(diagnosis_markdown(result))
     return 0
 

@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 
 from benchmarks.command import Command, add_progress_argument
+from benchmarks.errors import OutputExistsError
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -37,7 +38,7 @@ def _run(args: argparse.Namespace) -> int:
 
     progress = not args.no_progress
     if args.out.exists():
-        raise FileExistsError(f"run folder exists already: {args.out}")
+        raise OutputExistsError(f"run folder exists already: {args.out}")
     dataset = open_dataset(args.data, progress=progress)
     dev = check_dev(open_dataset(args.dev, verify=False), dataset) if args.dev is not None else ""
     models: list[TrainedModel] = []

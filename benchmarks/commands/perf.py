@@ -13,6 +13,7 @@ from pathlib import Path
 
 from benchmarks import perf
 from benchmarks.command import Command
+from benchmarks.errors import UserError
 from benchmarks.perf.base import PerfStage
 
 
@@ -50,7 +51,7 @@ def _run(args: argparse.Namespace) -> int:
     elif args.stage in known:
         chosen = [known[args.stage]]
     else:
-        raise ValueError(f"--stage {args.stage!r} is unknown; allowed: all, {', '.join(sorted(known))}")
+        raise UserError(f"--stage {args.stage!r} is unknown; allowed: all, {', '.join(sorted(known))}")
     figures: dict[str, float] = {}
     descriptions: dict[str, str] = {}
     for stage in chosen:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from benchmarks.command import Command
+from benchmarks.errors import check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -18,8 +19,7 @@ def _run(args: argparse.Namespace) -> int:
     from sim.scenario import OBSTACLE_MASS, OBSTACLE_SIZES, TRANSIENT_HEIGHT
     from sim.world import SURFACES
 
-    if args.seed < 0:
-        raise ValueError(f"--seed = {args.seed} is invalid; allowed: an integer >= 0")
+    check_seed(args.seed)
     print(f"presets (seed {args.seed}; `msvdd-bench simulate --preset NAME --seed N --out T.npz`):")
     for name, factory in sim.scenario_presets().items():
         sc = factory(args.seed)

@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 
 from benchmarks.command import Command
+from benchmarks.errors import UserError, check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,14 +26,14 @@ def _run(args: argparse.Namespace) -> int:
 
     import sim
 
-    if args.seed is not None and args.seed < 0:
-        raise ValueError(f"--seed = {args.seed} is invalid; allowed: an integer >= 0")
+    if args.seed is not None:
+        check_seed(args.seed)
     if args.out.suffix != ".npz":
-        raise ValueError(f"--out = {str(args.out)!r} is invalid; allowed: a path ending in .npz")
+        raise UserError(f"--out = {str(args.out)!r} is invalid; allowed: a path ending in .npz")
     if args.preset is not None:
         presets = sim.scenario_presets()
         if args.preset not in presets:
-            raise ValueError(f"--preset = {args.preset!r} is unknown; allowed: {', '.join(presets)}")
+            raise UserError(f"--preset = {args.preset!r} is unknown; allowed: {', '.join(presets)}")
         scenario = presets[args.preset](0 if args.seed is None else args.seed)
     else:
         scenario = sim.Scenario.from_toml(args.scenario)
@@ -43,7 +44,7 @@ def _run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - start
     bad = trace.non_finite_fields()
     if bad:
-        raise ValueError(f"simulation produced non-finite values in {', '.join(bad)}; nothing written")
+        raise UserError(f"simulation produced non-finite values in {', '.join(bad)}; nothing written")
     path = trace.save(args.out)
     speed = np.linalg.norm(trace.base_linvel[:, :2], axis=1)
     distance = float(speed.sum() * trace.physics_dt)

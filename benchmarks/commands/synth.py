@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 from benchmarks.command import Command
+from benchmarks.errors import UserError, check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,11 +31,10 @@ def _run(args: argparse.Namespace) -> int:
 
     out: Path = args.out
     if out.suffix.lower() not in FORMATS:
-        raise ValueError(f"--out {out}: unsupported suffix {out.suffix!r}; allowed: {', '.join(FORMATS)}")
+        raise UserError(f"--out {out}: unsupported suffix {out.suffix!r}; allowed: {', '.join(FORMATS)}")
     if not math.isfinite(args.snr):
-        raise ValueError(f"--snr must be a finite number of dB, got {args.snr}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+        raise UserError(f"--snr = {args.snr} is invalid; allowed: a finite number of dB")
+    check_seed(args.seed)
     trace = Trace.load(args.trace)
     config = AudioConfig(
         sample_rate=args.sample_rate,

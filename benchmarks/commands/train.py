@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from benchmarks.command import Command, add_device_argument, add_progress_argument
+from benchmarks.errors import OutputExistsError
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -32,7 +33,7 @@ def _run(args: argparse.Namespace) -> int:
     progress = not args.no_progress
     methods.spec(args.method)
     if args.out.exists() and any(args.out.iterdir()):
-        raise FileExistsError(f"model folder exists and is not empty: {args.out}")
+        raise OutputExistsError(f"model folder exists and is not empty: {args.out}")
     dataset = open_dataset(args.data, progress=progress)
     scale = args.scale or dataset.preset.method_scale
     model = train_method(

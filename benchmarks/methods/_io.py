@@ -12,10 +12,12 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.errors import InputNotFoundError, UserError
+
 _HEADER_KEY = "__header__"
 
 
-class ModelFileError(ValueError):
+class ModelFileError(UserError):
     """A model file is missing, malformed, or of another method or format version."""
 
 
@@ -79,7 +81,7 @@ def load_npz(
     """
     p = Path(path)
     if not p.is_file():
-        raise FileNotFoundError(f"model file {p} does not exist")
+        raise InputNotFoundError(f"model file {p} does not exist")
     not_ours = ModelFileError(
         f"{p} is not a msvdd-bench model file (expected a {kind!r} model: an .npz archive with a JSON header)"
     )

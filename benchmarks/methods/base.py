@@ -8,6 +8,7 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
+from benchmarks.errors import UserError
 from benchmarks.methods._io import load_npz, save_npz
 from msvdd.contract import Windows
 
@@ -19,9 +20,9 @@ THRESHOLD_PERCENTILE = 95.0
 
 
 def check_scale(scale: str) -> str:
-    """Return `scale` if it is one of `SCALES`, else raise ValueError naming the allowed values."""
+    """Return `scale` if it is one of `SCALES`, else raise a UserError naming the allowed values."""
     if scale not in SCALES:
-        raise ValueError(f"scale {scale!r} is unknown; allowed: {', '.join(SCALES)}")
+        raise UserError(f"scale {scale!r} is unknown; allowed: {', '.join(SCALES)}")
     return scale
 
 
@@ -30,7 +31,7 @@ def check_windows(batch: object, what: str, minimum: int = 1) -> Windows:
     if not isinstance(batch, Windows):
         raise TypeError(f"{what} must be msvdd.contract.Windows, got {type(batch).__name__}")
     if len(batch) < minimum:
-        raise ValueError(f"{what} has {len(batch)} windows; at least {minimum} needed")
+        raise UserError(f"{what} has {len(batch)} windows; at least {minimum} needed")
     return batch
 
 

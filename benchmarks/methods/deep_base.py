@@ -19,6 +19,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from benchmarks.errors import UserError
 from benchmarks.methods.base import WindowDetector, check_scale
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
@@ -99,7 +100,7 @@ class DeepDetector(WindowDetector):
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
         if len(train) < self.min_windows:
-            raise ValueError(
+            raise UserError(
                 f"train has {len(train)} windows; {type(self).__name__} needs at least {self.min_windows} "
                 f"(batch {self.config.batch_size} after a {self.config.val_fraction:.0%} validation split)"
             )

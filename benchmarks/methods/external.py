@@ -15,6 +15,7 @@ import importlib
 import inspect
 from typing import Any
 
+from benchmarks.errors import UserError
 from benchmarks.methods.registry import MODALITIES, MethodSpec
 from msvdd.contract import Detector
 
@@ -39,21 +40,21 @@ def external_spec(name: str) -> MethodSpec:
     """The `MethodSpec` of the `module:Class` detector `name`, imported on first use.
 
     Raises:
-        ValueError: the name is malformed, the module cannot be imported, it has no such class, or the class
+        UserError: the name is malformed, the module cannot be imported, it has no such class, or the class
             lacks a method of the detector contract (the message names the string and what is missing).
     """
     if name in _RESOLVED:
         return _RESOLVED[name]
     module_name, _, class_path = name.partition(":")
     if not module_name or not class_path or ":" in class_path:
-        raise ValueError(
+        raise UserError(
             f"method {name!r}: a detector from outside the project is named module:Class, "
             "e.g. mypkg.detectors:EnergyDetector"
         )
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ValueError(
+        raise UserError(
             f"method {name!r}: cannot import module {module_name!r} ({exc}); install it or put its folder "
             "on PYTHONPATH"
         ) from exc
@@ -61,18 +62,18 @@ def external_spec(name: str) -> MethodSpec:
     for part in class_path.split("."):
         found = getattr(found, part, None)
         if found is None:
-            raise ValueError(f"method {name!r}: module {module_name!r} has no class {class_path!r}")
+            raise UserError(f"method {name!r}: module {module_name!r} has no class {class_path!r}")
     if not inspect.isclass(found):
-        raise ValueError(f"method {name!r}: {class_path!r} is a {type(found).__name__}, not a class")
+        raise UserError(f"method {name!r}: {class_path!r} is a {type(found).__name__}, not a class")
     missing = [m for m in CONTRACT_METHODS if not callable(getattr(found, m, None))]
     if missing:
-        raise ValueError(
+        raise UserError(
             f"method {name!r}: class {class_path!r} lacks {', '.join(missing)} of the detector contract "
             "(msvdd.contract.Detector: fit, score, predict, save, classmethod load, threshold_)"
         )
     modality = str(getattr(found, "modality", "audio+imu"))
     if modality not in MODALITIES:
-        raise ValueError(
+        raise UserError(
             f"method {name!r}: class attribute modality = {modality!r}; allowed: {', '.join(MODALITIES)}"
         )
     doc = inspect.getdoc(found) or ""

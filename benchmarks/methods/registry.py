@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
+from benchmarks.errors import InputNotFoundError, UserError, check_seed
 from benchmarks.methods._io import ModelFileError, atomic_path, write_text_atomic
 from benchmarks.methods.base import check_scale
 from msvdd.contract import Detector
@@ -78,12 +79,12 @@ def register(name: str, factory: Factory, *, family: str, modality: str, descrip
 def names(family: str | None = None) -> list[str]:
     """Registered method names in registration order, optionally of one family."""
     if family is not None and family not in FAMILIES:
-        raise ValueError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
+        raise UserError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
     return [n for n, s in _REGISTRY.items() if family is None or s.family == family]
 
 
 def spec(name: str) -> MethodSpec:
-    """The `MethodSpec` of `name`; ValueError listing the allowed names if unknown.
+    """The `MethodSpec` of `name`; a UserError listing the allowed names if unknown.
 
     A name `module:Class` is a detector from outside the project, imported on first use
     (`benchmarks.methods.external`).
@@ -94,7 +95,7 @@ def spec(name: str) -> MethodSpec:
 
     if is_external(name):
         return external_spec(name)
-    raise ValueError(
+    raise UserError(
         f"method {name!r} is unknown; allowed: {', '.join(_REGISTRY)}, "
         "or module:Class for a detector of your own"
     )
@@ -109,10 +110,9 @@ def make(name: str, *, seed: int, scale: str, device: str = "cpu", progress: boo
     """
     method = spec(name)
     check_scale(scale)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed must be a non-negative int, got {seed!r}")
+    check_seed(seed, "seed")
     if device not in DEVICES:
-        raise ValueError(f"device {device!r} is unknown; allowed: {', '.join(DEVICES)}")
+        raise UserError(f"device {device!r} is unknown; allowed: {', '.join(DEVICES)}")
     detector = method.factory(seed, scale, device)
     if progress is not None:
         _set_progress(detector, progress)
@@ -180,7 +180,7 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
         )
     meta_path = folder / METHOD_FILE
     if not meta_path.is_file():
-        raise FileNotFoundError(f"{meta_path} does not exist; not a saved model folder (or a partial one)")
+        raise InputNotFoundError(f"{meta_path} does not exist; not a saved model folder (or a partial one)")
     try:
         info = json.loads(meta_path.read_text(encoding="utf-8"))
     except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
@@ -203,7 +203,7 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
         raise ModelFileError(f"{meta_path} names method {name!r}, which cannot be built: {exc}") from exc
     model_path = folder / str(info.get("model_file", MODEL_FILE))
     if not model_path.is_file():
-        raise FileNotFoundError(f"{model_path} does not exist (named by {meta_path})")
+        raise InputNotFoundError(f"{model_path} does not exist (named by {meta_path})")
     cls = type(make(name, seed=0, scale="tiny"))
     try:
         detector: Detector = cls.load(model_path)

@@ -8,7 +8,7 @@ log_episode("runs/demo/dataset", "test-collision-000", model_dir="runs/demo/mode
 from benchmarks.viz.blueprint import build_blueprint
 from benchmarks.viz.config import TIMELINE, VizConfig
 from benchmarks.viz.recording import APPLICATION_ID, find_episode, load_model, log_episode, log_recording
-from benchmarks.viz.scoring import EpisodeScores, score_episode, window_starts
+from benchmarks.viz.scoring import EpisodeScores, score_episode
 
 __all__ = [
     "APPLICATION_ID",
@@ -21,5 +21,4 @@ __all__ = [
     "log_episode",
     "log_recording",
     "score_episode",
-    "window_starts",
 ]

@@ -9,12 +9,14 @@ from pathlib import Path
 
 import rerun as rr
 
+from benchmarks.dataset import window_starts
 from benchmarks.episode import Episode, read_episode
+from benchmarks.errors import InputNotFoundError, UserError
 from benchmarks.viz.blueprint import build_blueprint
 from benchmarks.viz.config import TIMELINE, VizConfig
 from benchmarks.viz.events import detection_events, log_events, trace_events
 from benchmarks.viz.scene import log_scene
-from benchmarks.viz.scoring import EpisodeScores, episode_duration, score_episode, window_starts
+from benchmarks.viz.scoring import EpisodeScores, episode_duration, score_episode
 from benchmarks.viz.series import (
     episode_spectrogram,
     log_audio,
@@ -35,14 +37,14 @@ def find_episode(dataset_dir: str | os.PathLike[str], episode_id: str) -> Path:
     """The folder of `episode_id` in a dataset; FileNotFoundError naming the path and some known ids."""
     data = Path(dataset_dir)
     if not data.is_dir():
-        raise FileNotFoundError(f"dataset folder not found: {data}")
+        raise InputNotFoundError(f"dataset folder not found: {data}")
     if not episode_id or Path(episode_id).name != episode_id or episode_id.startswith("."):
-        raise ValueError(f"episode id {episode_id!r} is not a folder name of {data}")
+        raise UserError(f"episode id {episode_id!r} is not a folder name of {data}")
     folder = data / episode_id
     if not folder.is_dir():
         known = sorted(p.name for p in data.iterdir() if (p / "meta.json").is_file())
         hint = f"; episodes there include {', '.join(known[:6])}" if known else "; it holds no episodes"
-        raise FileNotFoundError(f"episode folder not found: {folder}{hint}")
+        raise InputNotFoundError(f"episode folder not found: {folder}{hint}")
     return folder
 
 
@@ -57,7 +59,7 @@ def load_model(model_dir: str | os.PathLike[str]) -> tuple[str, Detector]:
 
     folder = Path(model_dir)
     if not folder.is_dir():
-        raise FileNotFoundError(f"model folder not found: {folder}")
+        raise InputNotFoundError(f"model folder not found: {folder}")
     return load_detector(folder)
 
 
@@ -86,7 +88,10 @@ def log_recording(
     log_wheel_speeds(rec, trace, config)
     log_audio(rec, episode, config)
     spec = episode_spectrogram(episode, config)
-    ends = scores.end_s if scores is not None else window_starts(episode_duration(episode), hop_s) + WINDOW_S
+    if scores is not None:
+        ends = scores.end_s
+    else:
+        ends = window_starts(episode_duration(episode), hop_s, first_s=0.0) + WINDOW_S
     log_spectrogram(rec, spec, ends, config)
     log_truth(rec, episode, trace.robot.wheel_names)
     events = trace_events(trace)
@@ -136,7 +141,7 @@ def log_episode(
     if save is None and not spawn:
         raise ValueError("log_episode needs save=PATH (a .rrd file) or spawn=True")
     if not hop_s > 0:
-        raise ValueError(f"hop_s must be > 0 s, got {hop_s}")
+        raise UserError(f"hop_s = {hop_s} is invalid; allowed: > 0 s")
     config = config or VizConfig()
     episode = read_episode(find_episode(dataset_dir, episode_id))
     trace = episode.trace()

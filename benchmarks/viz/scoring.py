@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.dataset import window_starts
 from benchmarks.episode import Episode
+from benchmarks.errors import UserError
 from msvdd import preprocess
 from msvdd.contract import AUDIO_RATE, IMU_RATE, WINDOW_S, Detector, WindowError
 
@@ -36,14 +38,6 @@ class EpisodeScores:
         return np.asarray(self.score > self.threshold)
 
 
-def window_starts(duration_s: float, hop_s: float) -> np.ndarray:
-    """Start times of every whole 2 s window of an episode at a hop (empty if it is shorter than 2 s)."""
-    if not hop_s > 0:
-        raise ValueError(f"hop_s must be > 0 s, got {hop_s}")
-    n = int(np.floor((duration_s - WINDOW_S) / hop_s + 1e-9)) + 1
-    return np.arange(max(n, 0)) * hop_s
-
-
 def episode_duration(episode: Episode) -> float:
     """Length covered by both the audio and the IMU, s."""
     return min(episode.audio.shape[0] / float(episode.audio_rate), episode.imu_vel_z.shape[0] / IMU_RATE)
@@ -62,12 +56,12 @@ def score_episode(
         model_dir: the model folder, named in errors.
 
     Raises:
-        ValueError: the episode cannot be cut into windows this detector reads (the message names the
+        UserError: the episode cannot be cut into windows this detector reads (the message names the
             model folder and the episode).
     """
     audio4410 = preprocess.decimate_audio(episode.audio, rate=float(episode.audio_rate))
     duration = min(audio4410.shape[0] / AUDIO_RATE, episode_duration(episode))
-    starts = window_starts(duration, hop_s)
+    starts = window_starts(duration, hop_s, first_s=0.0)
     scores = np.zeros(starts.size, dtype=np.float64)
     where = f"model {model_dir or method} on episode {episode.path}"
     for lo in range(0, starts.size, SCORE_BATCH):
@@ -75,8 +69,8 @@ def score_episode(
         windows = preprocess.frame_windows(audio4410, episode.imu_vel_z, batch_starts, imu6=episode.imu6)
         try:
             batch = np.asarray(detector.score(windows), dtype=np.float64)
-        except (WindowError, ValueError, RuntimeError) as exc:
-            raise ValueError(f"{where}: the detector cannot score these windows: {exc}") from exc
+        except WindowError as exc:  # windows it does not read (a bug inside it keeps its traceback)
+            raise UserError(f"{where}: the detector cannot score these windows: {exc}") from exc
         if batch.shape != batch_starts.shape:
             raise ValueError(f"{where}: score() returned shape {batch.shape}, expected {batch_starts.shape}")
         scores[lo : lo + batch_starts.size] = batch

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import csv
+import importlib
 import json
 import subprocess
 import sys
@@ -12,23 +14,45 @@ import numpy as np
 import pytest
 from sklearn.metrics import roc_auc_score
 
-from benchmarks.cli import build_parser, main
+from benchmarks.cli import _discover, build_parser, main
+from benchmarks.errors import FOREIGN_USER_ERRORS, is_user_error
 
 
-def test_every_subcommand_has_help() -> None:
-    parser = build_parser()
-    sub = next(a for a in parser._actions if a.dest == "command")
-    names = set(sub.choices)  # type: ignore[arg-type]
-    assert {"generate", "train", "evaluate", "run", "perf", "presets", "demo"} <= names
-    for name in sorted(names):
-        result = subprocess.run(
-            [sys.executable, "-m", "benchmarks.cli", name, "--help"],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
-        assert result.returncode == 0, result.stderr
-        assert "usage: msvdd-bench" in result.stdout
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in build_parser()._actions if a.dest == "command")
+    return dict(action.choices)  # type: ignore[arg-type]
+
+
+def test_the_console_script_runs_and_lists_every_command() -> None:
+    """The one subprocess: the module runs as a program; every other check builds the parser in-process."""
+    result = subprocess.run(
+        [sys.executable, "-m", "benchmarks.cli", "--help"], capture_output=True, text=True, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("usage: msvdd-bench")
+    for name in _subparsers():
+        assert f"    {name} " in result.stdout or f"    {name}\n" in result.stdout, name
+
+
+def test_every_subcommand_help_names_its_example_and_options() -> None:
+    subparsers = _subparsers()
+    commands = {c.name: c for c in _discover()}
+    assert {"generate", "train", "evaluate", "run", "perf", "presets", "demo"} <= set(commands)
+    assert set(subparsers) == set(commands)
+    for name, command in commands.items():
+        parser = subparsers[name]
+        text = parser.format_help()
+        assert text.startswith(f"usage: msvdd-bench {name}"), name
+        assert command.example.strip(), name
+        for line in command.example.strip().splitlines():
+            assert f"\n  {line}" in text, (name, line)
+        for action in parser._actions:
+            for option in action.option_strings:
+                assert option in text, (name, option)
+            if not action.option_strings:
+                assert str(action.metavar or action.dest) in text, (name, action.dest)
+            if action.help and action.help is not argparse.SUPPRESS:
+                assert " ".join(action.help.split()[:3]) in " ".join(text.split()), (name, action.help)
 
 
 def test_train_then_evaluate(tiny_dataset: Path, tiny_model: Path, tmp_path: Path) -> None:
@@ -92,6 +116,24 @@ def test_unknown_method_is_refused(
         main(["train", "--data", str(tiny_dataset), "--method", "magic", "--out", str(tmp_path / "m")]) == 2
     )
     assert "method 'magic' is unknown" in capsys.readouterr().err
+
+
+def test_a_negative_seed_exits_2_naming_the_field_value_and_range(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["generate", "--preset", "tiny", "--seed", "-1", "--out", str(tmp_path / "d")]) == 2
+    assert capsys.readouterr().err == (
+        "msvdd-bench generate: error: --seed = -1 is invalid; allowed: an integer >= 0\n"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_user_errors_are_known_by_type() -> None:
+    for module_name, class_name in FOREIGN_USER_ERRORS:  # msvdd, sim, synth_audio do not import benchmarks
+        error = getattr(importlib.import_module(module_name), class_name)
+        assert issubclass(error, Exception) and is_user_error(error("bad input")), class_name
+    for bug in (ValueError("x"), FileNotFoundError("x"), KeyError("x"), TypeError("x")):
+        assert not is_user_error(bug)
 
 
 def test_a_library_bug_keeps_its_traceback(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

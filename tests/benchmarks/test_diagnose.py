@@ -174,3 +174,11 @@ def test_a_model_of_another_family_exits_2(
     err = capsys.readouterr().err
     assert "'audio-rms'" in err and "not an M-SVDD model" in err
     assert not (model / "diagnosis").exists()
+
+
+def test_too_few_windows_exits_2_before_reading_anything(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["diagnose", str(tmp_path / "model"), "--data", str(tmp_path / "data"), "--max-windows", "5"]
+    assert main(argv) == 2
+    assert "--max-windows = 5 is invalid; allowed: an integer >= 20" in capsys.readouterr().err

@@ -13,9 +13,10 @@ from rerun.chunk import RrdReader
 
 import synth_audio
 from benchmarks.cli import main
+from benchmarks.dataset import window_starts
 from benchmarks.episode import EpisodeMeta, read_episode, write_episode
 from benchmarks.methods import make, save_detector
-from benchmarks.viz import VizConfig, log_episode, score_episode, window_starts
+from benchmarks.viz import VizConfig, log_episode, score_episode
 from benchmarks.viz.scene import wheel_fault_changes
 from benchmarks.viz.series import envelope_block
 from benchmarks.viz.signals import display_indices
@@ -161,7 +162,7 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     assert block == 44
     for side in ("left", "right"):
         assert rows[f"/signals/audio/{side}:Scalars:scalars"] == math.ceil(episode.audio.shape[0] / block)
-    n_windows = window_starts(DURATION, 0.5).size
+    n_windows = window_starts(DURATION, 0.5, first_s=0.0).size
     assert n_windows == 3
     assert rows["/detector/score:Scalars:scalars"] == n_windows
     assert rows["/detector/threshold:Scalars:scalars"] == n_windows
@@ -297,8 +298,7 @@ def test_generated_episode_scores_match_the_evaluation_windows(tiny_dataset: Pat
     episode = read_episode(tiny_dataset / episode_id)
     counts = _rows(out)
     assert counts["/signals/imu/vel_z:Scalars:scalars"] == episode.imu_time.size
-    assert (
-        counts["/detector/score:Scalars:scalars"] == window_starts(episode.imu_time.size / IMU_RATE, 0.5).size
-    )
+    n_windows = window_starts(episode.imu_time.size / IMU_RATE, 0.5, first_s=0.0).size
+    assert counts["/detector/score:Scalars:scalars"] == n_windows
     wheel = episode.trace().robot.wheel_names[rows[0].wheel]
     assert counts[f"/world/robot/wheels/{wheel}/tyre:Cylinders3D:colors"] >= 2  # turns red at the onset

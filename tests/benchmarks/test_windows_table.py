@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from benchmarks.dataset import label_windows, nominal_floors, plan_episodes, window_starts
+from benchmarks.errors import UserError
 from benchmarks.presets import get_preset, preset_names
 from sim.random_scenarios import SETTLE_S
 from sim.vocab import COLLISION, MECHANICAL, NORMAL, SURFACES, sub_kind_index
@@ -24,6 +25,8 @@ def test_window_starts_cover_whole_windows_only() -> None:
     np.testing.assert_allclose(window_starts(10.0, 2.0, first_s=0.0), [0, 2, 4, 6, 8])
     np.testing.assert_allclose(window_starts(5.5, 1.0, first_s=0.0), [0, 1, 2, 3])
     assert window_starts(1.5, 1.0, first_s=0.0).size == 0
+    with pytest.raises(UserError, match=r"hop_s = 0\.0 is invalid"):
+        window_starts(10.0, 0.0)
 
 
 def test_windows_start_once_the_robot_is_under_way() -> None:

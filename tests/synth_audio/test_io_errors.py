@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -118,8 +119,28 @@ def test_cli_synth_refuses_bad_input_and_writes_nothing(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.npz"]
 
 
-def test_perf_stage_quick_reports_a_real_time_factor(tmp_path: Path) -> None:
-    from benchmarks.perf.audio import STAGE
+def test_perf_audio_stage_times_the_real_render_in_both_environments(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The stage renders its workload with `synth_audio.render` (once to warm up, then timed) indoors and
+    outdoors, and reports audio seconds per CPU second, the worse environment as `audio_rtf`."""
+    import synth_audio
+    from benchmarks.perf import audio as perf_audio
 
-    figures = STAGE.measure(True)
-    assert figures["audio_rtf"] > 0 and set(STAGE.describe) <= set(figures)
+    rendered: list[tuple[str, Audio]] = []
+
+    def spy(trace: Trace, config: AudioConfig, seed: int) -> Audio:
+        out = render(trace, config, seed)
+        rendered.append((trace.environment, out))
+        return out
+
+    clock = iter([0.0, 0.01, 1.0, 1.04])  # CPU seconds at the start and end of each timed render
+    monkeypatch.setattr(synth_audio, "render", spy)
+    monkeypatch.setattr(perf_audio, "time", SimpleNamespace(process_time=lambda: next(clock)))
+    figures = perf_audio.STAGE.measure(True)  # quick: a 2 s workload, one timed render per environment
+    assert [env for env, _ in rendered] == ["indoor"] * 2 + ["outdoor"] * 2
+    for _, out in rendered:
+        assert out.samples.shape == (2 * 44100, 2) and out.sample_rate == 44100
+        assert np.all(np.isfinite(out.samples)) and np.sqrt(np.mean(out.samples**2)) > 1e-3
+    assert figures["audio_rtf_indoor"] == pytest.approx(2.0 / 0.01)
+    assert figures["audio_rtf_outdoor"] == pytest.approx(2.0 / 0.04)
+    assert figures["audio_rtf"] == figures["audio_rtf_outdoor"]
+    assert set(perf_audio.STAGE.describe) <= set(figures)

@@ -85,6 +85,7 @@ QUICK_METHODS: tuple[str, ...] = (
 
 TABLE1_METHODS: tuple[str, ...] = (
     "msvdd",
+    "msvdd-paper",
     "dsvdd",
     "dae",
     "vae-svdd",

@@ -40,6 +40,7 @@ COMPARISON: tuple[tuple[str, str], ...] = (
     ("dcase-ae", "DCASE AE (log-mel)"),
     ("vae-svdd", "VAE-SVDD"),
     ("dsvdd", "DSVDD"),
+    ("msvdd-paper", "M-SVDD (the paper's configuration)"),
     ("msvdd", "**M-SVDD (ours)**"),
 )
 """Table I rows: registry name (shallow ones get -early/-late) and the paper's label (DCASE AE is ours)."""

@@ -233,31 +233,16 @@ CI_METHODS: tuple[str, ...] = ("msvdd", "gaussian-early", "audio-rms")
 """What the `ci` preset trains by default: M-SVDD at the quick scale, the reference detector and the naive
 audio RMS (the regression gate's reference points)."""
 
-_PRESETS["ci"] = Preset(
+_PRESETS["ci"] = dataclasses.replace(
+    _PRESETS["quick"],
     name="ci",
     description="a CI regression gate: quick's training set, a test set of many short episodes (16 nominal "
     "sequences, 16 collisions, 10 faults, windows every 1 s) for tighter paired intervals; M-SVDD at quick "
     "scale, the reference and audio RMS",
-    nominal_train=6,
-    nominal_val=1,
-    nominal_train_duration_s=90.0,
     nominal_test=16,
     nominal_test_duration_s=20.0,
-    collisions_per_kind=2,
-    collision_duration_s=14.0,
-    faults_per_kind_wheel=1,
-    fault_duration_s=16.0,
-    severity=(0.4, 1.0),
-    snr_db=(0.0, 12.0),
-    transient_density=1.0,
-    train_units=(0, 1, 2),
-    test_units=(0, 1, 2),
-    train_hop_s=1.0,
     test_hop_s=1.0,
-    method_scale="quick",
-    seeds=(0,),
     methods=CI_METHODS,
-    wheels=(0, 3),
 )
 
 

@@ -224,6 +224,22 @@ def bootstrap_mean_auc(
     Returns:
         The seed-mean AUC and its (B,) replicates (NaN throughout if a class is missing).
     """
+    s, pos, w = _checked(scores, positive, clusters, weights)
+    if not pos.any() or pos.all():
+        return BootstrapAuc(math.nan, np.full(w.shape[0], math.nan), defined=False)
+    ones = np.ones(pos.size)
+    value = float(np.mean([weighted_auc(row, pos, ones) for row in s]))
+    replicates = np.mean([weighted_auc(row, pos, w) for row in s], axis=0)
+    return BootstrapAuc(value, replicates, defined=enough_episodes(clusters, pos))
+
+
+def _checked(
+    scores: np.ndarray | Sequence[Sequence[float]],
+    positive: np.ndarray | Sequence[bool],
+    clusters: np.ndarray | Sequence[str],
+    weights: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(scores (S, n), positive (n,) bool, weights (B, n)) as arrays; ValueError if the shapes disagree."""
     s = np.atleast_2d(np.asarray(scores, dtype=np.float64))
     pos = np.asarray(positive, dtype=bool)
     w = np.atleast_2d(np.asarray(weights, dtype=np.float64))
@@ -231,12 +247,7 @@ def bootstrap_mean_auc(
         raise ValueError(f"scores {s.shape}, positive {pos.shape} and weights {w.shape} must match")
     if np.shape(clusters) != pos.shape:
         raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
-    if not pos.any() or pos.all():
-        return BootstrapAuc(math.nan, np.full(w.shape[0], math.nan), defined=False)
-    ones = np.ones(pos.size)
-    value = float(np.mean([weighted_auc(row, pos, ones) for row in s]))
-    replicates = np.mean([weighted_auc(row, pos, w) for row in s], axis=0)
-    return BootstrapAuc(value, replicates, defined=enough_episodes(clusters, pos))
+    return s, pos, w
 
 
 PAUC_MAX_FPR = 0.1
@@ -269,13 +280,7 @@ def bootstrap_mean_pauc(
 
     `weights` must be `episode_draws` counts; the result's `minus` gives paired pAUC differences.
     """
-    s = np.atleast_2d(np.asarray(scores, dtype=np.float64))
-    pos = np.asarray(positive, dtype=bool)
-    w = np.atleast_2d(np.asarray(weights, dtype=np.float64))
-    if s.ndim != 2 or s.shape[0] == 0 or s.shape[1] != pos.size or w.shape[1] != pos.size:
-        raise ValueError(f"scores {s.shape}, positive {pos.shape} and weights {w.shape} must match")
-    if np.shape(clusters) != pos.shape:
-        raise ValueError(f"positive {pos.shape} and clusters {np.shape(clusters)} must match")
+    s, pos, w = _checked(scores, positive, clusters, weights)
     if not pos.any() or pos.all():
         return BootstrapAuc(math.nan, np.full(w.shape[0], math.nan), defined=False)
     ones = np.ones(pos.size)

@@ -78,7 +78,7 @@ QUICK_METHODS: tuple[str, ...] = (
     "gaussian-early",
     "iforest-early",
     "ocsvm-early",
-    "svdd-early",
+    "dcase-ae",
     "audio-rms",
     "imu-kurtosis",
 )

@@ -2,12 +2,13 @@
 
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Detector, WindowError, Windows
+from msvdd.frontend import InputNormalizer
 from msvdd.mcd import MCDError, MCDResult, SingularCovarianceError, mahalanobis, min_cov_det
 from msvdd.model import MSVDD, ModelFormatError, NotFittedError
 from msvdd.network import AudioDecoder, AudioEncoder, Fusion, FusionNet, ImuDecoder, ImuEncoder, NetOutput
-from msvdd.preprocess import Normalizer, decimate_audio, frame_windows
+from msvdd.preprocess import decimate_audio, frame_windows
 from msvdd.stream import StreamingScorer
-from msvdd.training import TrainResult, prepare_tensors, train_network
+from msvdd.training import TrainResult, train_network
 
 __all__ = [
     "MSVDD",
@@ -18,12 +19,12 @@ __all__ = [
     "FusionNet",
     "ImuDecoder",
     "ImuEncoder",
+    "InputNormalizer",
     "MCDError",
     "MCDResult",
     "MSVDDConfig",
     "ModelFormatError",
     "NetOutput",
-    "Normalizer",
     "NotFittedError",
     "SingularCovarianceError",
     "StreamingScorer",
@@ -34,6 +35,5 @@ __all__ = [
     "frame_windows",
     "mahalanobis",
     "min_cov_det",
-    "prepare_tensors",
     "train_network",
 ]

@@ -7,12 +7,14 @@
 - IMU inputs (`IMU_INPUTS`): "z", the paper's z-axis velocity (N, 400), and "all", the z-velocity with the
   accelerometer and gyroscope axes (N, 400, 7); a collision lives in the acceleration.
 - `InputNormalizer`: per-channel (per channel and mel band for log-mel) mean and standard deviation of the
-  training windows only, saved with the model. The paper's Savitzky-Golay smoothing is applied along time to
+  training windows only, saved with the model; M-SVDD and every deep baseline that reuses its network read
+  their inputs through it. The paper's Savitzky-Golay smoothing is applied along time to
   the waveform and the IMU channels after z-scoring; a log-mel frame is already an average over 58 ms.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Self
 
@@ -41,6 +43,7 @@ IMU_ALL_CHANNELS = 7
 """Channels of the "all" IMU input: z-velocity, acc xyz, gyro xyz."""
 _CHUNK = 256
 _STD_FLOOR = 1e-8
+_STAT_FIELDS = ("audio_mean", "audio_std", "imu_mean", "imu_std")
 
 
 def check_frontend(audio_frontend: str, imu_input: str) -> None:
@@ -128,7 +131,9 @@ class InputNormalizer:
         i_mean, i_std = _stats(imu, "imu")
         return cls(audio_frontend, imu_input, a_mean, a_std, i_mean, i_std)
 
-    def tensors(self, batch: Windows, smooth_window: int, smooth_polyorder: int) -> tuple[torch.Tensor, ...]:
+    def tensors(
+        self, batch: Windows, smooth_window: int = 5, smooth_polyorder: int = 2
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(audio, imu) float32 CPU tensors: front end, z-score, then smoothing along time."""
         audio, imu = raw_inputs(batch, self.audio_frontend, self.imu_input)
         if self.audio_frontend == "waveform":
@@ -147,24 +152,31 @@ class InputNormalizer:
             torch.from_numpy(np.ascontiguousarray(imu, dtype=np.float32)),
         )
 
-    def state(self) -> dict[str, torch.Tensor | str]:
-        """Tensors and names for a weights-only checkpoint."""
-        return {
-            "audio_frontend": self.audio_frontend,
-            "imu_input": self.imu_input,
-            **{
-                k: torch.from_numpy(np.asarray(getattr(self, k), dtype=np.float64))
-                for k in ("audio_mean", "audio_std", "imu_mean", "imu_std")
-            },
-        }
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The statistics as float64 arrays (the front-end names live in the model's config)."""
+        return {k: np.asarray(getattr(self, k), dtype=np.float64) for k in _STAT_FIELDS}
 
     @classmethod
-    def from_state(cls, state: dict[str, object]) -> Self:
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], audio_frontend: str, imu_input: str) -> Self:
+        """Inverse of `arrays`; the IMU statistics may be scalars (files of the paper's z-velocity input)."""
+        check_frontend(audio_frontend, imu_input)
+        stats = {k: np.asarray(arrays[k], dtype=np.float64) for k in _STAT_FIELDS}
+        for k in ("imu_mean", "imu_std"):
+            stats[k] = stats[k].reshape(-1)
+        return cls(audio_frontend, imu_input, **stats)
+
+    def state(self) -> dict[str, torch.Tensor | str]:
+        """Tensors and names for a weights-only checkpoint."""
+        tensors = {k: torch.from_numpy(v) for k, v in self.arrays().items()}
+        return {"audio_frontend": self.audio_frontend, "imu_input": self.imu_input, **tensors}
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, object]) -> Self:
         """Inverse of `state`."""
         arrays = {}
-        for k in ("audio_mean", "audio_std", "imu_mean", "imu_std"):
+        for k in _STAT_FIELDS:
             value = state[k]
             if not isinstance(value, torch.Tensor):
                 raise ValueError(f"normalizer state {k!r} is not a tensor")
-            arrays[k] = value.numpy().reshape(-1) if k.startswith("imu") else value.numpy()
-        return cls(str(state["audio_frontend"]), str(state["imu_input"]), **arrays)
+            arrays[k] = value.numpy()
+        return cls.from_arrays(arrays, str(state["audio_frontend"]), str(state["imu_input"]))

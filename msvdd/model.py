@@ -155,8 +155,7 @@ class MSVDD:
     def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
         if self.normalizer is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
-        audio, imu = self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
-        return audio, imu
+        return self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
 
     def _init_center(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
         """Euclidean mode: c = mean initial embedding, entries near 0 pushed to +-eps (Ruff et al.)."""

@@ -1,4 +1,4 @@
-"""Preprocessing (paper, Experimental Setting): decimation, framing, z-score, smoothing, tensors.
+"""Preprocessing (paper, Experimental Setting): decimation, framing, smoothing (z-scores: `msvdd.frontend`).
 
 - `decimate_audio`: 44.1 kHz -> 4410 Hz by a zero-phase (centred, delay-compensated) linear-phase FIR
   anti-alias filter (Kaiser window, 401 taps, cutoff 2 kHz) followed by keeping every 10th sample, applied
@@ -6,7 +6,6 @@
   recording, so any stretch away from the recording's ends can be computed from a finite stretch of input
   (what `msvdd.stream` relies on).
 - `frame_windows`: 2 s windows at given start times.
-- `Normalizer`: per-channel z-score statistics fitted on training windows only, saved with the model.
 - `smooth`: the paper's smoothing filter, a Savitzky-Golay filter along time within each window
   (edges mirrored within the window; no state crosses a window boundary).
 """
@@ -14,11 +13,8 @@
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
-from typing import Self
 
 import numpy as np
-import torch
 from scipy import ndimage, signal
 
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError, Windows
@@ -111,68 +107,3 @@ def smooth(x: np.ndarray, window: int, polyorder: int) -> np.ndarray:
 @functools.lru_cache(maxsize=8)
 def _savgol_coeffs(window: int, polyorder: int) -> np.ndarray:
     return signal.savgol_coeffs(window, polyorder).astype(np.float32)
-
-
-@dataclass(frozen=True)
-class Normalizer:
-    """Per-channel z-score statistics of training windows."""
-
-    audio_mean: np.ndarray
-    """(2,) mean of each audio channel."""
-    audio_std: np.ndarray
-    """(2,) standard deviation of each audio channel (1 where a channel is constant)."""
-    imu_mean: float
-    """Mean of the IMU z-velocity."""
-    imu_std: float
-    """Standard deviation of the IMU z-velocity (1 if constant)."""
-
-    @classmethod
-    def fit(cls, train: Windows) -> Self:
-        """Statistics of `train` (never of validation or test windows)."""
-        if len(train) == 0:
-            raise WindowError("Normalizer.fit needs at least one training window")
-        a_mean = train.audio.mean(axis=(0, 1), dtype=np.float64)
-        a_std = train.audio.std(axis=(0, 1), dtype=np.float64)
-        i_mean = float(train.imu.mean(dtype=np.float64))
-        i_std = float(train.imu.std(dtype=np.float64))
-        return cls(
-            audio_mean=a_mean,
-            audio_std=np.where(a_std > 0, a_std, 1.0),
-            imu_mean=i_mean,
-            imu_std=i_std if i_std > 0 else 1.0,
-        )
-
-    def apply(self, batch: Windows) -> tuple[np.ndarray, np.ndarray]:
-        """(audio (N, 8820, 2), imu (N, 400)) float32, z-scored."""
-        audio = (batch.audio - self.audio_mean.astype(np.float32)) / self.audio_std.astype(np.float32)
-        imu = (batch.imu - np.float32(self.imu_mean)) / np.float32(self.imu_std)
-        return audio.astype(np.float32), imu.astype(np.float32)
-
-    def state(self) -> dict[str, torch.Tensor]:
-        """Tensors for a weights-only checkpoint."""
-        return {
-            "audio_mean": torch.from_numpy(np.asarray(self.audio_mean, dtype=np.float64)),
-            "audio_std": torch.from_numpy(np.asarray(self.audio_std, dtype=np.float64)),
-            "imu_mean": torch.tensor(self.imu_mean, dtype=torch.float64),
-            "imu_std": torch.tensor(self.imu_std, dtype=torch.float64),
-        }
-
-    @classmethod
-    def from_state(cls, state: dict[str, torch.Tensor]) -> Self:
-        """Inverse of `state`."""
-        return cls(
-            audio_mean=state["audio_mean"].numpy(),
-            audio_std=state["audio_std"].numpy(),
-            imu_mean=float(state["imu_mean"]),
-            imu_std=float(state["imu_std"]),
-        )
-
-
-def to_tensors(
-    batch: Windows, normalizer: Normalizer, smooth_window: int = 5, smooth_polyorder: int = 2
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Windows -> (audio (N, 8820, 2), imu (N, 400)) float32 CPU tensors: z-scored, then smoothed."""
-    audio, imu = normalizer.apply(batch)
-    audio = smooth(audio, smooth_window, smooth_polyorder)
-    imu = smooth(imu, smooth_window, smooth_polyorder)
-    return torch.from_numpy(np.ascontiguousarray(audio)), torch.from_numpy(np.ascontiguousarray(imu))

@@ -18,9 +18,6 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from msvdd.contract import Windows
-from msvdd.preprocess import Normalizer, to_tensors
-
 LossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], torch.Tensor]
 """loss_fn(module, batch) -> scalar loss; batch holds one slice of each training tensor, on the device."""
 ValLossFn = Callable[[nn.Module, tuple[torch.Tensor, ...]], float]
@@ -101,13 +98,6 @@ def resolve_device(name: str) -> torch.device:
     if name not in ("cpu", "cuda"):
         raise ValueError(f"device {name!r}; allowed: cpu | cuda | auto")
     return torch.device(name)
-
-
-def prepare_tensors(
-    windows: Windows, normalizer: Normalizer, smooth_window: int = 5, smooth_polyorder: int = 2
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Windows -> (audio, imu) float32 tensors, z-scored with `normalizer` and smoothed per window."""
-    return to_tensors(windows, normalizer, smooth_window, smooth_polyorder)
 
 
 def split_train_val(n: int, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,7 @@
 Every deep baseline is `msvdd.network.FusionNet` (the paper's CRNN audio encoder, LSTM IMU encoder,
 fusion and decoders) plus a small method-specific head and loss, trained by `msvdd.training.train_network`
 with the same budget as M-SVDD at each scale (`MSVDDConfig.tiny()`, `.quick()`, `.paper()`). Inputs are
-z-scored with `msvdd.preprocess.Normalizer` statistics of the training windows and smoothed per window as
+z-scored with `msvdd.frontend.InputNormalizer` statistics of the training windows and smoothed per window as
 M-SVDD does. All random draws (initialisation, dropout, sampling, shuffling) happen inside a forked torch RNG
 seeded from the method's seed, so the same seed gives the same model bit for bit. Model files are `.npz`
 (weights as float arrays, config as JSON): no pickle. They train and score on `config.device` (cpu, cuda or
@@ -23,10 +23,10 @@ from benchmarks.errors import UserError
 from benchmarks.methods.base import WindowDetector, check_scale
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
+from msvdd.frontend import InputNormalizer
 from msvdd.losses import reconstruction_loss
 from msvdd.network import NetOutput
-from msvdd.preprocess import Normalizer
-from msvdd.training import prepare_tensors, resolve_device, split_train_val, train_network
+from msvdd.training import resolve_device, split_train_val, train_network
 
 SCORE_CHUNK = 256
 """Windows per forward pass when scoring."""
@@ -56,7 +56,7 @@ class DeepDetector(WindowDetector):
         self.config = config
         self.device = resolve_device(config.device)
         self.module: nn.Module = nn.Module()
-        self.normalizer: Normalizer | None = None
+        self.normalizer: InputNormalizer | None = None
         self.extra: dict[str, torch.Tensor] = {}
 
     @abc.abstractmethod
@@ -94,9 +94,7 @@ class DeepDetector(WindowDetector):
     def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
         if self.normalizer is None:
             raise RuntimeError(f"{type(self).__name__} has no normaliser; fit it first")
-        return prepare_tensors(
-            batch, self.normalizer, self.config.smooth_window, self.config.smooth_polyorder
-        )
+        return self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
         if len(train) < self.min_windows:
@@ -110,7 +108,7 @@ class DeepDetector(WindowDetector):
             train_part, val_part = train.subset(tr_idx), train.subset(va_idx)
         else:
             train_part, val_part = train, val
-        self.normalizer = Normalizer.fit(train_part)
+        self.normalizer = InputNormalizer.fit(train_part, cfg.audio_frontend, cfg.imu_input)
         audio, imu = self._tensors(train_part)
         val_tensors = self._tensors(val_part) if len(val_part) else None
         with torch.random.fork_rng(devices=[]):
@@ -133,7 +131,7 @@ class DeepDetector(WindowDetector):
         if self.normalizer is None:
             raise RuntimeError("not fitted")
         arrays = {f"net/{k}": v.detach().cpu().numpy() for k, v in self.module.state_dict().items()}
-        arrays |= {f"norm/{k}": v.numpy() for k, v in self.normalizer.state().items()}
+        arrays |= {f"norm/{k}": v for k, v in self.normalizer.arrays().items()}
         arrays |= {f"extra/{k}": self.extra[k].detach().cpu().numpy() for k in self.extra_keys}
         return {"config": self.config.to_dict(), "torch": torch.__version__}, arrays
 
@@ -145,8 +143,9 @@ class DeepDetector(WindowDetector):
         state = {k[4:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("net/")}
         detector.module.load_state_dict({k: v.to(detector.device) for k, v in state.items()})
         detector.module.eval()
-        detector.normalizer = Normalizer.from_state(
-            {k[5:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("norm/")}
+        cfg = detector.config
+        detector.normalizer = InputNormalizer.from_arrays(
+            {k[5:]: v for k, v in arrays.items() if k.startswith("norm/")}, cfg.audio_frontend, cfg.imu_input
         )
         detector.extra = {
             k: torch.from_numpy(arrays[f"extra/{k}"].copy()).to(detector.device) for k in cls.extra_keys

@@ -25,9 +25,9 @@ from benchmarks.methods.base import WindowDetector, check_scale
 from benchmarks.methods.deep_base import SCORE_CHUNK, scale_config
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Windows
+from msvdd.frontend import InputNormalizer
 from msvdd.network import FusionNet
-from msvdd.preprocess import Normalizer
-from msvdd.training import prepare_tensors, resolve_device
+from msvdd.training import resolve_device
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ class DeepIsolationForest(WindowDetector):
         self.forests: list[IsolationForest] = []
         self.train_embeddings: list[np.ndarray] = []
         self.train_scores: list[np.ndarray] = []
-        self.normalizer: Normalizer | None = None
+        self.normalizer: InputNormalizer | None = None
         self.device = resolve_device(net_config.device)
 
     def _build_nets(self) -> list[FusionNet]:
@@ -78,7 +78,7 @@ class DeepIsolationForest(WindowDetector):
         if self.normalizer is None:
             raise RuntimeError("DeepIsolationForest has no normaliser; fit it first")
         cfg = self.net_config
-        audio, imu = prepare_tensors(batch, self.normalizer, cfg.smooth_window, cfg.smooth_polyorder)
+        audio, imu = self.normalizer.tensors(batch, cfg.smooth_window, cfg.smooth_polyorder)
         out = []
         with torch.no_grad():
             for net in self.nets:
@@ -102,7 +102,8 @@ class DeepIsolationForest(WindowDetector):
         self.train_scores = [-f.score_samples(x) for f, x in zip(self.forests, embeddings, strict=True)]
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
-        self.normalizer = Normalizer.fit(train)
+        cfg = self.net_config
+        self.normalizer = InputNormalizer.fit(train, cfg.audio_frontend, cfg.imu_input)
         self.nets = self._build_nets()
         self._grow(self._embed(train))
 
@@ -122,7 +123,7 @@ class DeepIsolationForest(WindowDetector):
             },
             "net_config": self.net_config.to_dict(),
         }
-        arrays = {f"norm/{k}": v.numpy() for k, v in self.normalizer.state().items()}
+        arrays = {f"norm/{k}": v for k, v in self.normalizer.arrays().items()}
         for r, net in enumerate(self.nets):
             arrays |= {f"net{r}/{k}": v.cpu().numpy() for k, v in net.state_dict().items()}
             arrays[f"emb{r}"] = self.train_embeddings[r]
@@ -132,8 +133,11 @@ class DeepIsolationForest(WindowDetector):
     @classmethod
     def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
         detector = cls(DeepIFConfig(**header["config"]), MSVDDConfig.from_dict(header["net_config"]))
-        detector.normalizer = Normalizer.from_state(
-            {k[5:]: torch.from_numpy(v.copy()) for k, v in arrays.items() if k.startswith("norm/")}
+        net_cfg = detector.net_config
+        detector.normalizer = InputNormalizer.from_arrays(
+            {k[5:]: v for k, v in arrays.items() if k.startswith("norm/")},
+            net_cfg.audio_frontend,
+            net_cfg.imu_input,
         )
         detector.nets = detector._build_nets()
         for r, net in enumerate(detector.nets):

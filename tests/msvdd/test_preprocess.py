@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from msvdd.contract import WindowError, Windows
-from msvdd.preprocess import Normalizer, decimate_audio, frame_windows, smooth, to_tensors
+from msvdd.frontend import InputNormalizer
+from msvdd.preprocess import decimate_audio, frame_windows, smooth
 
 FS = 44100.0
 
@@ -90,24 +91,24 @@ def _windows(n: int, seed: int, scale: float = 1.0, offset: float = 0.0) -> Wind
 
 def test_normalizer_uses_training_statistics_only() -> None:
     train = _windows(4, 0, scale=3.0, offset=2.0)
-    norm = Normalizer.fit(train)
+    norm = InputNormalizer.fit(train)
     np.testing.assert_allclose(norm.audio_mean, 2.0, atol=0.08)
     np.testing.assert_allclose(norm.audio_std, 3.0, atol=0.08)
     other = _windows(3, 1, scale=10.0, offset=-5.0)
-    audio, _ = norm.apply(other)
+    audio = norm.tensors(other, smooth_window=0)[0].numpy()
     # The other batch is scaled with the training statistics, not its own.
     np.testing.assert_allclose(audio.mean(), (-5.0 - 2.0) / 3.0, atol=0.05)
-    restored = Normalizer.from_state(norm.state())
-    np.testing.assert_array_equal(restored.apply(other)[0], audio)
+    restored = InputNormalizer.from_state(norm.state())
+    np.testing.assert_array_equal(restored.tensors(other, smooth_window=0)[0].numpy(), audio)
 
 
 def test_smoothing_is_per_window() -> None:
     batch = _windows(3, 2)
-    a1, i1 = to_tensors(batch, Normalizer.fit(batch))
+    a1, i1 = InputNormalizer.fit(batch).tensors(batch)
     changed = Windows(audio=batch.audio.copy(), imu=batch.imu.copy())
     changed.audio[1] += 5.0 * np.sign(changed.audio[1])
     changed.imu[1] *= -3.0
-    a2, i2 = to_tensors(changed, Normalizer.fit(batch))
+    a2, i2 = InputNormalizer.fit(batch).tensors(changed)
     # Windows 0 and 2 are untouched by what happens in window 1 (no filter state crosses windows).
     assert np.array_equal(a1[[0, 2]].numpy(), a2[[0, 2]].numpy())
     assert np.array_equal(i1[[0, 2]].numpy(), i2[[0, 2]].numpy())

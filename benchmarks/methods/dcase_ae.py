@@ -150,17 +150,20 @@ class DcaseAutoencoder(WindowDetector):
             [frame_vectors(batch.audio[s : s + chunk], self.config) for s in range(0, len(batch), chunk)]
         )
 
+    def _standardise(self, raw: np.ndarray) -> np.ndarray:
+        return (raw - self.mean) / self.std
+
     def vectors(self, batch: Windows) -> torch.Tensor:
         """(N, V, dim) float32 standardised frame vectors of a window batch, on the CPU."""
-        return torch.from_numpy((self._raw_vectors(batch) - self.mean) / self.std)
+        return torch.from_numpy(self._standardise(self._raw_vectors(batch)))
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
         cfg = self.config
-        raw = self._raw_vectors(train).reshape(-1, cfg.dim)
+        raw = self._raw_vectors(train).reshape(-1, cfg.dim)  # log-mel once: statistics and training set
         self.mean = raw.mean(axis=0, dtype=np.float64).astype(np.float32)
         self.std = np.maximum(raw.std(axis=0, dtype=np.float64), _STD_FLOOR).astype(np.float32)
+        x = torch.from_numpy(self._standardise(raw))
         del raw
-        x = self.vectors(train).reshape(-1, cfg.dim)
         val_x = self.vectors(val).reshape(-1, cfg.dim) if val is not None else None
         budget = dataclasses.replace(cfg, batch_size=min(cfg.batch_size, x.shape[0]))
         with torch.random.fork_rng(devices=[]):

@@ -88,6 +88,12 @@ def raw_inputs(batch: Windows, audio_frontend: str, imu_input: str) -> tuple[np.
     return audio, imu
 
 
+def _nonempty(train: Windows) -> Windows:
+    if len(train) == 0:
+        raise WindowError("InputNormalizer.fit needs at least one training window")
+    return train
+
+
 def _channel_axes(x: np.ndarray, kind: str) -> tuple[int, ...]:
     """Axes averaged over for the statistics: all but the channel axes."""
     if kind == "audio":
@@ -124,9 +130,26 @@ class InputNormalizer:
     @classmethod
     def fit(cls, train: Windows, audio_frontend: str = "waveform", imu_input: str = "z") -> Self:
         """Statistics of `train` (never of validation or test windows)."""
-        if len(train) == 0:
-            raise WindowError("InputNormalizer.fit needs at least one training window")
-        audio, imu = raw_inputs(train, audio_frontend, imu_input)
+        return cls._fit_raw(
+            *raw_inputs(_nonempty(train), audio_frontend, imu_input), audio_frontend, imu_input
+        )
+
+    @classmethod
+    def fit_tensors(
+        cls,
+        train: Windows,
+        audio_frontend: str = "waveform",
+        imu_input: str = "z",
+        smooth_window: int = 5,
+        smooth_polyorder: int = 2,
+    ) -> tuple[Self, tuple[torch.Tensor, torch.Tensor]]:
+        """`fit` and `tensors` of the same training windows, with their front end computed once."""
+        audio, imu = raw_inputs(_nonempty(train), audio_frontend, imu_input)
+        normalizer = cls._fit_raw(audio, imu, audio_frontend, imu_input)
+        return normalizer, normalizer._normalise(audio, imu, smooth_window, smooth_polyorder)
+
+    @classmethod
+    def _fit_raw(cls, audio: np.ndarray, imu: np.ndarray, audio_frontend: str, imu_input: str) -> Self:
         a_mean, a_std = _stats(audio, "audio")
         i_mean, i_std = _stats(imu, "imu")
         return cls(audio_frontend, imu_input, a_mean, a_std, i_mean, i_std)
@@ -136,6 +159,11 @@ class InputNormalizer:
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """(audio, imu) float32 CPU tensors: front end, z-score, then smoothing along time."""
         audio, imu = raw_inputs(batch, self.audio_frontend, self.imu_input)
+        return self._normalise(audio, imu, smooth_window, smooth_polyorder)
+
+    def _normalise(
+        self, audio: np.ndarray, imu: np.ndarray, smooth_window: int, smooth_polyorder: int
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         if self.audio_frontend == "waveform":
             audio = (audio - self.audio_mean.astype(np.float32)) / self.audio_std.astype(np.float32)
             audio = smooth(audio, smooth_window, smooth_polyorder)

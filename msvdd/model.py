@@ -118,8 +118,9 @@ class MSVDD:
         elif val is not None:
             _check_windows(val, "val")
         self._check_sizes(len(fit_part), 0 if val is None else len(val))
-        self.normalizer = InputNormalizer.fit(fit_part, cfg.audio_frontend, cfg.imu_input)
-        train_t = self._tensors(fit_part)
+        self.normalizer, train_t = InputNormalizer.fit_tensors(
+            fit_part, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
+        )
         val_t = None if val is None or len(val) == 0 else self._tensors(val)
         if not cfg.use_mahalanobis:
             self._init_center(train_t)

@@ -108,8 +108,9 @@ class DeepDetector(WindowDetector):
             train_part, val_part = train.subset(tr_idx), train.subset(va_idx)
         else:
             train_part, val_part = train, val
-        self.normalizer = InputNormalizer.fit(train_part, cfg.audio_frontend, cfg.imu_input)
-        audio, imu = self._tensors(train_part)
+        self.normalizer, (audio, imu) = InputNormalizer.fit_tensors(
+            train_part, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
+        )
         val_tensors = self._tensors(val_part) if len(val_part) else None
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(cfg.seed)

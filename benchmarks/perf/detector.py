@@ -51,8 +51,9 @@ def _train_rate(quick: bool) -> float:
     model = MSVDD(MSVDDConfig.paper(epochs=1, progress=False, val_fraction=0.0))
     train, _ = toy_windows(n, 0, seed=1)
     cfg = model.config
-    model.normalizer = InputNormalizer.fit(train, cfg.audio_frontend, cfg.imu_input)
-    tensors = model.normalizer.tensors(train, cfg.smooth_window, cfg.smooth_polyorder)
+    model.normalizer, tensors = InputNormalizer.fit_tensors(
+        train, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
+    )
     warm = tuple(t[:128] for t in tensors)
     train_network(model.module, model.batch_loss, warm, None, model.config)
     result = train_network(model.module, model.batch_loss, tensors, None, model.config)

@@ -120,3 +120,13 @@ def test_smoothing_keeps_quadratics_and_attenuates_noise() -> None:
     np.testing.assert_allclose(smooth(quad, 5, 2)[:, 2:-2], quad[:, 2:-2], atol=1e-5)  # exact on degree 2
     noise = np.random.default_rng(0).standard_normal((1, 4000))
     assert smooth(noise, 5, 2).std() < 0.9 * noise.std()
+
+
+def test_fit_tensors_equals_fit_then_tensors() -> None:
+    batch = _windows(3, 4)
+    norm, (audio, imu) = InputNormalizer.fit_tensors(batch)
+    fitted = InputNormalizer.fit(batch)
+    for key, value in fitted.arrays().items():
+        np.testing.assert_array_equal(norm.arrays()[key], value)
+    for got, want in zip((audio, imu), fitted.tensors(batch), strict=True):
+        np.testing.assert_array_equal(got.numpy(), want.numpy())

@@ -20,6 +20,9 @@ from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, t
 from benchmarks.presets import expand_methods, get_preset
 from benchmarks.report import RunInfo, write_report
 
+DEFAULT_PRESET = "quick"
+"""The dataset preset of `run` and `demo` when neither --preset nor --data names one."""
+
 
 def run_benchmark(
     out: Path,
@@ -34,7 +37,6 @@ def run_benchmark(
     command: str,
     progress: bool = True,
     dev: Path | None = None,
-    default_preset: str = "quick",
     cache: Path | None = None,
     device: str = "cpu",
 ) -> Path:
@@ -44,7 +46,7 @@ def run_benchmark(
     interrupted run leaves no folder that looks complete. `dev` names the dev dataset the methods'
     choices were made on (checked against the evaluated one and recorded in the report). With `data`, the
     preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
-    without, they default to `default_preset` and 0. With `cache` (not with `data`), the dataset is taken
+    without, they default to `DEFAULT_PRESET` and 0. With `cache` (not with `data`), the dataset is taken
     from that cache folder, generated there first if needed (`benchmarks.cache`). `device` is where the
     torch methods train and score; `progress` shows every bar, training ones included. Returns `out`.
     """
@@ -55,7 +57,7 @@ def run_benchmark(
         raise UserError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
     if data is not None:
         preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
-    preset_name = preset_name or default_preset
+    preset_name = preset_name or DEFAULT_PRESET
     seed = 0 if seed is None else check_seed(seed)
     preset = get_preset(preset_name)
     names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())

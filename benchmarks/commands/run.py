@@ -8,17 +8,13 @@ from pathlib import Path
 
 from benchmarks.command import Command, add_device_argument, add_progress_argument
 
-DEFAULT_PRESET = "quick"
 
-
-def add_run_arguments(p: argparse.ArgumentParser, default_preset: str = DEFAULT_PRESET) -> None:
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by `run` and `demo`."""
-    p.set_defaults(default_preset=default_preset)
     p.add_argument(
         "--preset",
         default=None,
-        help=f"dataset preset, see `msvdd-bench presets` (default: {default_preset}; with --data, the "
-        "dataset's)",
+        help="dataset preset, see `msvdd-bench presets` (default: quick; with --data, the dataset's)",
     )
     p.add_argument(
         "--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)"
@@ -67,7 +63,6 @@ def run_from_args(args: argparse.Namespace) -> Path:
         args.out,
         preset_name=args.preset,
         seed=args.seed,
-        default_preset=args.default_preset,
         method_names=args.methods,
         data=args.data,
         workers=args.workers,

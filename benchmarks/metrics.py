@@ -1,7 +1,7 @@
 """Honest detection metrics on plain arrays: thresholded P/R/F1, oracle best F1, ROC-AUC, pAUC, delays.
 
 Labels are 1 for anomalous windows and 0 for normal ones; scores are higher = more anomalous. The
-thresholded metrics use the detector's `threshold_` (from training data only); `f1_oracle` is the best
+thresholded metrics use the detector's `threshold_` (from nominal data only); `f1_oracle` is the best
 F1 over every threshold on the test precision-recall curve (the paper's protocol) and is named oracle
 because it sees the test labels. Every function here is checked against scikit-learn in the tests.
 """
@@ -64,7 +64,7 @@ def f1_oracle(
 ) -> tuple[float, float]:
     """ORACLE best F1 over every threshold of the test precision-recall curve, and that threshold.
 
-    It sees the test labels: report it next to, never instead of, the F1 at the training threshold.
+    It sees the test labels: report it next to, never instead of, the F1 at the detector's threshold.
     The threshold t means flags `score >= t`.
     """
     y, s = _binary(labels, scores)
@@ -200,19 +200,19 @@ class MethodMetrics:
     pauc: float
     """Partial ROC-AUC at FPR <= max_fpr, McClish-standardised (DCASE convention)."""
     precision: float
-    """Precision at the training threshold."""
+    """Precision at the detector's threshold."""
     recall: float
-    """Recall at the training threshold."""
+    """Recall at the detector's threshold."""
     f1: float
-    """F1 at the training threshold."""
+    """F1 at the detector's threshold."""
     f1_oracle: float
     """ORACLE best F1 over the test precision-recall curve (sees test labels; the paper's protocol)."""
     threshold: float
-    """The training threshold used for precision, recall, F1 and delays."""
+    """The detector's threshold used for precision, recall, F1 and delays."""
     threshold_oracle: float
     """The test-label threshold that gives `f1_oracle` (flags score >= it)."""
     false_alarm_rate: float
-    """Fraction of normal test windows flagged at the training threshold."""
+    """Fraction of normal test windows flagged at the detector's threshold."""
     n_normal: int
     """Normal test windows."""
     n_collision: int
@@ -267,7 +267,7 @@ def compute_metrics(
 
     Args:
         scores: (N,) test scores, higher = more anomalous.
-        threshold: the detector's training threshold (`threshold_`).
+        threshold: the detector's threshold (`threshold_`, from nominal data).
         kinds: (N,) `normal`, `collision` or `mechanical`.
         sub_kinds: (N,) sub-kind names (obstacle or fault kind; `none` for normal), or None.
         window_episode, window_start: (N,) episode id and start time (s) of each window, for delays.

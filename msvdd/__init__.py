@@ -1,10 +1,10 @@
 """Mahalanobis SVDD with audio-IMU fusion (the paper's method), and the detector contract."""
 
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Detector, WindowError, Windows
+from msvdd.contract import Detector, NotFittedError, WindowError, Windows
 from msvdd.frontend import InputNormalizer
 from msvdd.mcd import MCDError, MCDResult, SingularCovarianceError, mahalanobis, min_cov_det
-from msvdd.model import MSVDD, ModelFormatError, NotFittedError
+from msvdd.model import MSVDD, ModelFormatError
 from msvdd.network import AudioDecoder, AudioEncoder, Fusion, FusionNet, ImuDecoder, ImuEncoder, NetOutput
 from msvdd.preprocess import decimate_audio, frame_windows
 from msvdd.stream import StreamingScorer

@@ -2,14 +2,15 @@
 
 Windows follow the paper (Experimental Setting): 2 s of binaural audio decimated to 4410 Hz
 (8820 x 2) and IMU z-axis velocity at 200 Hz (400). Detectors score windows, higher = more anomalous,
-with `threshold_` fixed at fit time from training data only.
+with `threshold_` fixed at fit time from nominal data only (`Detector`: the one threshold rule).
 """
 
 from __future__ import annotations
 
+import abc
 import os
 from dataclasses import dataclass
-from typing import Protocol, Self, runtime_checkable
+from typing import ClassVar, Self
 
 import numpy as np
 
@@ -74,30 +75,99 @@ class Windows:
         )
 
 
-@runtime_checkable
-class Detector(Protocol):
-    """What every method (M-SVDD, its ablations, every baseline) implements."""
+THRESHOLD_QUANTILE = 0.95
+"""The decision threshold is this quantile of a fitted detector's scores on nominal windows."""
+MIN_HELD_OUT = 20
+"""Fewest held-out nominal windows (`val`) from which the threshold is taken; with fewer, the training
+windows' scores are used."""
+THRESHOLD_SOURCES: tuple[str, ...] = ("val", "train")
+"""Where a threshold came from: held-out nominal windows, or the windows the detector was fit on."""
 
-    threshold_: float
-    """Decision threshold, fixed by `fit` from training scores only (95th percentile by default)."""
+
+class NotFittedError(RuntimeError):
+    """A detector is used before `fit` (or `load`)."""
+
+
+def check_windows(batch: object, what: str, minimum: int = 1) -> Windows:
+    """Return `batch` if it is a `Windows` with at least `minimum` windows; else a `WindowError`."""
+    if not isinstance(batch, Windows):
+        raise WindowError(f"{what} must be a msvdd.contract.Windows batch, got {type(batch).__name__}")
+    if len(batch) < minimum:
+        raise WindowError(f"{what} has {len(batch)} windows; at least {minimum} needed")
+    return batch
+
+
+class Detector(abc.ABC):
+    """What every method (M-SVDD, its ablations, every baseline) implements.
+
+    Subclasses implement `_fit`, `_score`, `save` and `load`. `fit` fits, then fixes `threshold_` by the one
+    threshold rule: the `quantile` (0.95) of the scores of the held-out nominal windows `val` when there
+    are at least `MIN_HELD_OUT` of them, else of the training windows (`threshold_source_` says which).
+    Scores of held-out windows are what test nominal windows look like to a detector; the scores of the
+    windows it was fit on are lower for a detector that fits them closely, and a threshold from them
+    fires on nominal test windows far more often than 5 % of the time. No test window is ever used.
+    Bad input raises `WindowError` (a `ValueError`); use before fitting raises `NotFittedError`.
+    """
+
+    min_train: ClassVar[int] = 2
+    """Fewest training windows `fit` accepts."""
+    quantile: float = THRESHOLD_QUANTILE
+    """Threshold quantile of nominal scores (M-SVDD reads it from its config)."""
+
+    threshold_: float = float("nan")
+    """Decision threshold, fixed by `fit` (or read by `load`); nan before."""
+    threshold_source_: str = "train"
+    """`val` or `train`: the windows whose scores gave `threshold_` (`THRESHOLD_SOURCES`)."""
+    _fitted: bool = False
+
+    @abc.abstractmethod
+    def _fit(self, train: Windows, val: Windows | None) -> None:
+        """Fit the model on nominal training windows (`val`, nominal too, may select a model)."""
+
+    @abc.abstractmethod
+    def _score(self, batch: Windows) -> np.ndarray:
+        """(N,) scores of a fitted model, higher = more anomalous."""
+
+    @abc.abstractmethod
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write everything needed to score again, threshold included, into one file."""
+
+    @classmethod
+    @abc.abstractmethod
+    def load(cls, path: str | os.PathLike[str]) -> Self:
+        """Read a file written by `save`."""
 
     def fit(self, train: Windows, val: Windows | None = None) -> Self:
-        """Fit on nominal windows; `val` (nominal too) may be used for model selection."""
-        ...
+        """Fit on nominal `train` windows (`val`: nominal, for model selection), then set the threshold."""
+        check_windows(train, "train", self.min_train)
+        if val is not None:
+            check_windows(val, "val")
+        self._fit(train, val)
+        self._fitted = True
+        held_out = val is not None and len(val) >= MIN_HELD_OUT
+        reference = val if held_out and val is not None else train
+        self.threshold_ = float(np.quantile(self.score(reference), self.quantile))
+        self.threshold_source_ = "val" if held_out else "train"
+        return self
 
     def score(self, batch: Windows) -> np.ndarray:
         """(N,) float64 anomaly scores, higher = more anomalous."""
-        ...
+        if not self._fitted:
+            raise NotFittedError(f"{type(self).__name__} is not fitted; call fit(train) or load(path) first")
+        check_windows(batch, "batch")
+        scores = np.asarray(self._score(batch), dtype=np.float64)
+        if scores.shape != (len(batch),):
+            raise RuntimeError(f"{type(self).__name__} produced scores of shape {scores.shape}")
+        return scores
 
     def predict(self, batch: Windows) -> np.ndarray:
         """(N,) bool: score > threshold_."""
-        ...
+        return self.score(batch) > self.threshold_
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write everything needed to score again into one file."""
-        ...
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Self:
-        """Read a file written by `save`."""
-        ...
+    def _set_threshold(self, threshold: float, source: str) -> None:
+        """Restore a saved threshold (for `load`) and mark the detector fitted."""
+        if source not in THRESHOLD_SOURCES:
+            raise WindowError(f"threshold source {source!r}; allowed: {', '.join(THRESHOLD_SOURCES)}")
+        self.threshold_ = float(threshold)
+        self.threshold_source_ = source
+        self._fitted = True

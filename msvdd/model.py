@@ -3,16 +3,19 @@
 fit: z-score statistics from the training windows; train the network with
 alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
 and Sigma by MCD over the embeddings of the whole training split, the training means of D and L_Rec, and the
-threshold = the `quantile` of the training scores delta = D + w (mean_D / mean_Rec) L_Rec. No test label is
-ever seen. With `use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD
-around a fixed centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
+score delta = D + w (mean_D / mean_Rec) L_Rec; the threshold follows the rule of `msvdd.contract.Detector`
+(the `quantile` of the scores of held-out nominal windows). No test label is ever seen. With
+`use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD around a fixed
+centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
@@ -22,7 +25,7 @@ import torch
 from torch import nn
 
 from msvdd.config import MSVDDConfig
-from msvdd.contract import WindowError, Windows
+from msvdd.contract import Detector, NotFittedError, WindowError, Windows, check_windows
 from msvdd.frontend import InputNormalizer
 from msvdd.losses import (
     batch_statistics,
@@ -47,10 +50,6 @@ AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 
 class ModelFormatError(ValueError):
     """A model file is not an M-SVDD file of the supported format version."""
-
-
-class NotFittedError(RuntimeError):
-    """The detector is used before `fit` (or `load`)."""
 
 
 @dataclass(frozen=True)
@@ -78,13 +77,12 @@ class _Module(nn.Module):
         self.register_buffer("center", torch.zeros(config.s))
 
 
-class MSVDD:
-    """Mahalanobis SVDD with audio-IMU fusion. `MSVDD(MSVDDConfig.paper()).fit(train)`."""
-
-    threshold_: float
+class MSVDD(Detector):
+    """Mahalanobis SVDD with audio-IMU fusion. `MSVDD(MSVDDConfig.paper()).fit(train, val)`."""
 
     def __init__(self, config: MSVDDConfig | None = None) -> None:
         self.config = config or MSVDDConfig()
+        self.quantile = self.config.quantile
         self.device = resolve_device(self.config.device)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.config.seed)
@@ -102,21 +100,30 @@ class MSVDD:
 
     # ---------------------------------------------------------------- training
 
-    def fit(self, train: Windows, val: Windows | None = None) -> Self:
-        """Fit on nominal `train` windows; `val` (nominal) selects the best epoch, else a held-out split.
+    def _fit(self, train: Windows, val: Windows | None) -> None:
+        """Train on nominal `train` windows; `val` (nominal) selects the best epoch, else a held-out split.
+
+        A validation set too small for the validation MCD (fewer than about s + 3 windows) cannot select
+        an epoch: M-SVDD then trains without one (keeping the last epoch) and says so in a warning.
 
         Raises:
-            WindowError: not a `Windows` batch.
-            ValueError: fewer training windows than a batch or the final MCD needs.
+            WindowError: fewer training windows than a batch or the final MCD needs.
         """
         cfg = self.config
-        _check_windows(train, "train")
+        n_val = len(val) if val is not None else round(len(train) * cfg.val_fraction)
+        if cfg.use_mahalanobis and n_val > 0 and not _mcd_possible(min(n_val, cfg.batch_size), cfg):
+            source = "the val set" if val is not None else f"a {cfg.val_fraction:.0%} validation split"
+            warnings.warn(
+                f"{source} has {n_val} windows, too few for the validation MCD in s={cfg.s} dimensions; "
+                "M-SVDD trains without validation (last epoch kept)",
+                stacklevel=3,
+            )
+            self.config = cfg = dataclasses.replace(cfg, val_fraction=0.0)
+            val = None
         fit_part = train
         if val is None and cfg.val_fraction > 0:
             tr, va = split_train_val(len(train), cfg.val_fraction, cfg.seed)
             fit_part, val = train.subset(tr), train.subset(va)
-        elif val is not None:
-            _check_windows(val, "val")
         self._check_sizes(len(fit_part), 0 if val is None else len(val))
         self.normalizer, train_t = InputNormalizer.fit_tensors(
             fit_part, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
@@ -136,12 +143,11 @@ class MSVDD:
             epoch_probe=self._epoch_figures,
         )
         self._finalise(train_t)
-        return self
 
     def _check_sizes(self, n_train: int, n_val: int) -> None:
         cfg = self.config
         if n_train < cfg.batch_size:
-            raise ValueError(
+            raise WindowError(
                 f"{n_train} training windows (after the validation split); at least batch_size="
                 f"{cfg.batch_size} are needed"
             )
@@ -151,7 +157,7 @@ class MSVDD:
                 if n_val:
                     support_size(min(n_val, cfg.batch_size), cfg.s, cfg.mcd_support_fraction)
             except MCDError as err:
-                raise ValueError(f"too few windows for the MCD in s={cfg.s} dimensions: {err}") from err
+                raise WindowError(f"too few windows for the MCD in s={cfg.s} dimensions: {err}") from err
 
     def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
         if self.normalizer is None:
@@ -211,7 +217,7 @@ class MSVDD:
         return batched_loss(fixed, self.config.batch_size, self.device)(module, tensors)
 
     def _finalise(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
-        """mu, Sigma over the whole training split; training means; threshold."""
+        """mu, Sigma over the whole training split; the training means of D and Rec."""
         cfg = self.config
         z = self._embed_tensors(train_t).to(torch.float64)
         if cfg.use_mahalanobis:
@@ -235,8 +241,6 @@ class MSVDD:
             raise ValueError(
                 f"training produced degenerate scores (mean D {self.mean_d_}, mean Rec {self.mean_rec_})"
             )
-        scores = self._delta(d, rec)
-        self.threshold_ = float(np.quantile(scores, cfg.quantile))
 
     # ---------------------------------------------------------------- scoring
 
@@ -297,20 +301,16 @@ class MSVDD:
 
     def score_components(self, batch: Windows) -> tuple[np.ndarray, np.ndarray]:
         """(D (N,) Mahalanobis (or Euclidean) distance, Rec (N,) reconstruction loss; zeros without it)."""
-        _check_windows(batch, "batch")
+        check_windows(batch, "batch")
         return self._components_tensors(self._tensors(batch))
 
-    def score(self, batch: Windows) -> np.ndarray:
+    def _score(self, batch: Windows) -> np.ndarray:
         """(N,) float64 anomaly scores delta = D + w (mean_D / mean_Rec) Rec; higher = more anomalous."""
-        return self._delta(*self.score_components(batch))
-
-    def predict(self, batch: Windows) -> np.ndarray:
-        """(N,) bool: score > threshold_."""
-        return self.score(batch) > self.threshold_
+        return self._delta(*self._components_tensors(self._tensors(batch)))
 
     def embed(self, batch: Windows) -> np.ndarray:
         """(N, s) float32 fused embeddings z."""
-        _check_windows(batch, "batch")
+        check_windows(batch, "batch")
         return self._embed_tensors(self._tensors(batch)).cpu().numpy()
 
     # ---------------------------------------------------------------- persistence
@@ -331,6 +331,7 @@ class MSVDD:
             "mean_rec": self.mean_rec_,
             "rec_scale": torch.from_numpy(np.asarray(self.rec_scale_, dtype=np.float64)),
             "threshold": self.threshold_,
+            "threshold_source": self.threshold_source_,
             "history": None if self.history_ is None else self.history_.to_dict(),
         }
         target = Path(path)
@@ -384,7 +385,7 @@ class MSVDD:
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
-        model.threshold_ = float(payload["threshold"])
+        model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)
         return model
@@ -395,6 +396,10 @@ class MSVDD:
         return float(self.module.radius.detach())
 
 
-def _check_windows(batch: object, name: str) -> None:
-    if not isinstance(batch, Windows):
-        raise WindowError(f"{name} must be a msvdd.Windows batch, got {type(batch).__name__}")
+def _mcd_possible(n: int, config: MSVDDConfig) -> bool:
+    """Whether `n` windows can hold the MCD support of a full-rank covariance in s dimensions."""
+    try:
+        support_size(n, config.s, config.mcd_support_fraction)
+    except MCDError:
+        return False
+    return True

@@ -12,7 +12,7 @@ from benchmarks.methods import gaussian as _gaussian
 from benchmarks.methods import msvdd_family as _msvdd
 from benchmarks.methods import naive as _naive
 from benchmarks.methods import shallow as _shallow
-from benchmarks.methods.base import SCALES, THRESHOLD_PERCENTILE
+from benchmarks.methods.base import SCALES
 from benchmarks.methods.registry import (
     FAMILIES,
     MODALITIES,
@@ -37,7 +37,6 @@ __all__ = [
     "FAMILIES",
     "MODALITIES",
     "SCALES",
-    "THRESHOLD_PERCENTILE",
     "MethodSpec",
     "load_detector",
     "make",

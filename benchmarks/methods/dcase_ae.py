@@ -214,6 +214,7 @@ def register_methods() -> None:
     register(
         "dcase-ae",
         make,
+        cls=DcaseAutoencoder,
         family="deep",
         modality="audio",
         description="DCASE 2020 Task 2 baseline: dense autoencoder on 5-frame log-mel vectors, audio only",

@@ -296,6 +296,7 @@ def register_methods() -> None:
         register(
             name,
             _factory(cls),
+            cls=cls,
             family="deep",
             modality="audio+imu",
             description=text,

@@ -172,6 +172,7 @@ def register_methods() -> None:
     register(
         "deep-if",
         make,
+        cls=DeepIsolationForest,
         family="deep",
         modality="audio+imu",
         description="Deep Isolation Forest: isolation forests on random M-SVDD network representations",

@@ -2,7 +2,8 @@
 
 `msvdd-bench run --methods mypkg.detectors:EnergyDetector` (also `train --method`) imports `mypkg.detectors`
 (installed, or on `PYTHONPATH`) and builds `EnergyDetector`, which implements the detector contract
-`msvdd.contract.Detector`: `fit(train, val=None)` returning self and setting `threshold_`, `score(batch)`,
+`msvdd.contract.Detector` (subclassing it gives the project's threshold rule for free; any class with the
+same methods works): `fit(train, val=None)` returning self and setting `threshold_`, `score(batch)`,
 `predict(batch)`, `save(path)` and the classmethod `load(path)`. Its constructor is called with whichever of
 the keyword arguments `seed`, `scale` and `device` it accepts (none is required). The saved model's
 `method.json` records the `module:Class` name, so `evaluate` loads it again through the same import.
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
-from typing import Any
+from typing import Any, cast
 
 from benchmarks.errors import UserError
 from benchmarks.methods.registry import MODALITIES, MethodSpec
@@ -78,7 +79,8 @@ def external_spec(name: str) -> MethodSpec:
         )
     doc = inspect.getdoc(found) or ""
     description = doc.splitlines()[0] if doc else f"external detector {name}"
-    spec = MethodSpec(name, _factory(found), EXTERNAL_FAMILY, modality, description)
+    cls = cast("type[Detector]", found)  # duck-typed: the contract's methods were checked above
+    spec = MethodSpec(name, _factory(found), EXTERNAL_FAMILY, modality, description, cls)
     _RESOLVED[name] = spec
     return spec
 

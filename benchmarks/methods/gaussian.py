@@ -98,6 +98,7 @@ def register_methods() -> None:
         register(
             f"gaussian-{modality}",
             lambda seed, scale, device, m=modality: GaussianReference(m),  # type: ignore[misc]
+            cls=GaussianReference,
             family="reference",
             modality=reads,
             description=f"reference: Ledoit-Wolf Mahalanobis distance on {label} window statistics",

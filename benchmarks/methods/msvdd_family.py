@@ -10,24 +10,16 @@ dimension s. Two budget rules keep every variant trainable:
 - At the tiny scale no validation split is held out (val_fraction = 0): the validation MCD needs more than s
   validation windows, more than a seconds-long test has.
 
-A validation set too small for the validation MCD (fewer than about s + 3 windows) cannot select an epoch:
-M-SVDD then trains without one (keeping the last epoch) and says so in a warning, instead of refusing to fit.
-
-The threshold follows the rule every method in the registry follows: the 95th percentile of the scores of all
-windows passed to `fit` (M-SVDD alone takes it over its training split without the held-out validation part).
+The registry builds `msvdd.model.MSVDD` itself (no wrapper): its threshold follows the one rule of
+`msvdd.contract.Detector`, like every other method's.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import warnings
-from typing import Any, Self
+from typing import Any
 
-from benchmarks.methods.base import training_threshold
 from benchmarks.methods.deep_base import scale_config
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Windows
-from msvdd.mcd import MCDError, support_size
 from msvdd.model import MSVDD
 
 DEV_CHOICE: dict[str, Any] = {"audio_frontend": "logmel", "imu_input": "all", "rec_score": "peak", "w": 3.0}
@@ -69,38 +61,9 @@ def msvdd_config(name: str, seed: int, scale: str, device: str = "cpu") -> MSVDD
     return scale_config(scale, seed, **overrides, **extra, device=device)
 
 
-class BenchMSVDD(MSVDD):
-    """`MSVDD` whose threshold is the 95th percentile of the scores of every window passed to `fit`."""
-
-    def fit(self, train: Windows, val: Windows | None = None) -> Self:
-        """Fit M-SVDD (without validation if `val` is too small for its MCD), then set `threshold_`."""
-        cfg = self.config
-        n_val = len(val) if val is not None else round(len(train) * cfg.val_fraction)
-        if cfg.use_mahalanobis and n_val > 0 and not _mcd_possible(min(n_val, cfg.batch_size), cfg):
-            source = "the val set" if val is not None else f"a {cfg.val_fraction:.0%} validation split"
-            warnings.warn(
-                f"{source} has {n_val} windows, too few for the validation MCD in s={cfg.s} dimensions; "
-                "M-SVDD trains without validation (last epoch kept)",
-                stacklevel=2,
-            )
-            self.config = dataclasses.replace(cfg, val_fraction=0.0)
-            val = None
-        super().fit(train, val)
-        self.threshold_ = training_threshold(self.score(train))
-        return self
-
-
-def _mcd_possible(n: int, config: MSVDDConfig) -> bool:
-    try:
-        support_size(n, config.s, config.mcd_support_fraction)
-    except MCDError:
-        return False
-    return True
-
-
 def _factory(name: str) -> Any:
-    def make(seed: int, scale: str, device: str) -> BenchMSVDD:
-        return BenchMSVDD(msvdd_config(name, seed, scale, device))
+    def make(seed: int, scale: str, device: str) -> MSVDD:
+        return MSVDD(msvdd_config(name, seed, scale, device))
 
     return make
 
@@ -112,4 +75,4 @@ def register_methods() -> None:
     for name, (overrides, text) in ABLATIONS.items():
         modality = "audio" if overrides.get("use_imu") is False else "audio+imu"
         modality = "imu" if overrides.get("use_audio") is False else modality
-        register(name, _factory(name), family="msvdd", modality=modality, description=text)
+        register(name, _factory(name), cls=MSVDD, family="msvdd", modality=modality, description=text)

@@ -66,6 +66,7 @@ def register_methods() -> None:
     register(
         "audio-rms",
         lambda seed, scale, device: AudioRMS(),
+        cls=AudioRMS,
         family="naive",
         modality="audio",
         description="window audio RMS (sanity baseline)",
@@ -73,6 +74,7 @@ def register_methods() -> None:
     register(
         "imu-kurtosis",
         lambda seed, scale, device: IMUKurtosis(),
+        cls=IMUKurtosis,
         family="naive",
         modality="imu",
         description="excess kurtosis of the IMU window (sanity baseline)",

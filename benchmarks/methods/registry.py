@@ -52,17 +52,22 @@ class MethodSpec:
     """One of `MODALITIES`."""
     description: str
     """One line for tables and `--help`."""
+    cls: type[Detector]
+    """The class of the detectors `factory` builds; its `load` reads saved models."""
 
 
 _REGISTRY: dict[str, MethodSpec] = {}
 
 
-def register(name: str, factory: Factory, *, family: str, modality: str, description: str) -> None:
+def register(
+    name: str, factory: Factory, *, cls: type[Detector], family: str, modality: str, description: str
+) -> None:
     """Register a method under `name`.
 
     Args:
         name: unique registry name.
-        factory: factory(seed, scale, device) -> unfitted detector; its class's `load` reads saved models.
+        factory: factory(seed, scale, device) -> unfitted detector of class `cls`.
+        cls: the detector class; its `load` reads saved models.
         family: one of `FAMILIES`.
         modality: one of `MODALITIES`.
         description: one line.
@@ -73,7 +78,7 @@ def register(name: str, factory: Factory, *, family: str, modality: str, descrip
         raise ValueError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
     if modality not in MODALITIES:
         raise ValueError(f"modality {modality!r} is unknown; allowed: {', '.join(MODALITIES)}")
-    _REGISTRY[name] = MethodSpec(name, factory, family, modality, description)
+    _REGISTRY[name] = MethodSpec(name, factory, family, modality, description, cls)
 
 
 def names(family: str | None = None) -> list[str]:
@@ -198,15 +203,14 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
     if not isinstance(name, str):
         raise ModelFileError(f"{meta_path} names no method (got {name!r})")
     try:
-        spec(name)
+        method = spec(name)
     except ValueError as exc:
         raise ModelFileError(f"{meta_path} names method {name!r}, which cannot be built: {exc}") from exc
     model_path = folder / str(info.get("model_file", MODEL_FILE))
     if not model_path.is_file():
         raise InputNotFoundError(f"{model_path} does not exist (named by {meta_path})")
-    cls = type(make(name, seed=0, scale="tiny"))
     try:
-        detector: Detector = cls.load(model_path)
+        detector: Detector = method.cls.load(model_path)
     except ModelFileError:
         raise  # one line naming the file: not ours, or another kind or format version
     except (ValueError, KeyError, EOFError) as exc:

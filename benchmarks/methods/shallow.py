@@ -235,6 +235,7 @@ def register_methods() -> None:
             register(
                 f"{model}-{fusion}",
                 _factory(model, fusion),
+                cls=ShallowDetector,
                 family="shallow",
                 modality="audio+imu",
                 description=f"{_TITLES[model]}, {fusion} fusion: {how} log-mel + IMU features",

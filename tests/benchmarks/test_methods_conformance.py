@@ -12,7 +12,7 @@ import torch
 
 from benchmarks import methods
 from benchmarks.metrics import roc_auc
-from msvdd.contract import AUDIO_LEN, IMU_LEN, Detector, Windows
+from msvdd.contract import AUDIO_LEN, IMU_LEN, MIN_HELD_OUT, Detector, NotFittedError, WindowError, Windows
 from msvdd.synthetic import toy_windows
 
 torch.set_num_threads(1)
@@ -42,6 +42,8 @@ def plant_obvious_anomaly(windows: Windows, seed: int) -> Windows:
 class Toy:
     train: Windows
     """Nominal toy windows to fit on."""
+    val: Windows
+    """Held-out nominal toy windows (`MIN_HELD_OUT` + 4): model selection and the threshold."""
     test: Windows
     """Held-out toy windows, nominal and toy anomalies."""
     normal: Windows
@@ -55,7 +57,8 @@ def toy() -> Toy:
     windows, labels = toy_windows(n_normal=112, n_anomalous=16, seed=11)
     test = windows.subset(slice(80, None))
     normal = test.subset(np.flatnonzero(labels[80:] == 0))
-    return Toy(windows.subset(slice(0, 80)), test, normal, plant_obvious_anomaly(normal, seed=5))
+    val, _ = toy_windows(n_normal=MIN_HELD_OUT + 4, n_anomalous=0, seed=12)
+    return Toy(windows.subset(slice(0, 80)), val, test, normal, plant_obvious_anomaly(normal, seed=5))
 
 
 @pytest.mark.parametrize("name", methods.names())
@@ -63,9 +66,9 @@ def test_method_conforms(name: str, toy: Toy, tmp_path: Path) -> None:
     train, test = toy.train, toy.test
     detector = methods.make(name, seed=0, scale="tiny")
     assert isinstance(detector, Detector)
-    with pytest.raises((RuntimeError, ValueError)):
-        detector.score(test)  # not fitted yet
-    assert detector.fit(train) is detector
+    with pytest.raises(NotFittedError):
+        detector.score(test)
+    assert detector.fit(train, toy.val) is detector
 
     scores = detector.score(test)
     assert scores.shape == (len(test),) and scores.dtype == np.float64
@@ -77,8 +80,10 @@ def test_method_conforms(name: str, toy: Toy, tmp_path: Path) -> None:
     auc = roc_auc(labels, np.r_[normal, planted])
     assert auc >= PLANTED_AUC_MIN, f"{name} ranks obvious anomalies above normal windows with AUC {auc:.2f}"
 
-    train_scores = detector.score(train)
-    assert detector.threshold_ == pytest.approx(np.percentile(train_scores, 95), rel=1e-9, abs=1e-12)
+    # the one threshold rule: the 95th percentile of the held-out nominal windows' scores
+    assert detector.threshold_source_ == "val"
+    val_scores = detector.score(toy.val)
+    assert detector.threshold_ == pytest.approx(np.quantile(val_scores, 0.95), rel=1e-9, abs=1e-12)
     threshold = detector.threshold_
     np.testing.assert_array_equal(detector.predict(test), scores > threshold)
     assert detector.threshold_ == threshold  # scoring other data never moves the threshold
@@ -86,13 +91,21 @@ def test_method_conforms(name: str, toy: Toy, tmp_path: Path) -> None:
     folder = methods.save_detector(detector, name, tmp_path / "model")
     loaded_name, loaded = methods.load_detector(folder)
     assert loaded_name == name
-    assert loaded.threshold_ == threshold
+    assert loaded.threshold_ == threshold and loaded.threshold_source_ == "val"
     np.testing.assert_array_equal(loaded.score(test), scores)
 
-    with pytest.raises((TypeError, ValueError)):
+    with pytest.raises(WindowError):
         detector.score(test.audio)  # type: ignore[arg-type]
-    with pytest.raises((TypeError, ValueError)):
+    with pytest.raises(WindowError):
         methods.make(name, seed=0, scale="tiny").fit(train.subset(slice(0, 1)))
+
+
+@pytest.mark.parametrize("n_val", [0, MIN_HELD_OUT - 1])
+def test_threshold_from_training_windows_without_enough_held_out(n_val: int, toy: Toy) -> None:
+    val = toy.val.subset(slice(0, n_val)) if n_val else None
+    detector = methods.make("audio-rms", seed=0, scale="tiny").fit(toy.train, val)
+    assert detector.threshold_source_ == "train"
+    assert detector.threshold_ == np.quantile(detector.score(toy.train), 0.95)
 
 
 # The ablations share M-SVDD's code path: "msvdd" stands for them here (each runs the test above).

@@ -4,6 +4,12 @@ Action: left and right wheel speed commands in [-1, 1] (scaled to `max_wheel_spe
 the IMU (3-axis accelerometer, 3-axis gyro, z-velocity, with noise and bias) and the wheel state
 (speeds and torques). Info: the label of the step (normal / collision / mechanical, sub-kind, wheel)
 and the robot-obstacle contacts of the step. One step is one 40 ms control period.
+
+The observables come from the same code as `sim.simulate`'s trace: the IMU observation is the last IMU
+sample of the step, decimated by `sim.imu.decimate` with the noise of `sim.imu.imu_noise` (the scenario's
+seed, or the seed given to `reset`); the label is `sim.events.labels` at the step's end over the contacts so
+far (so it matches the trace's label at that sample, except the 20 ms before first contact, which needs the
+future).
 """
 
 from __future__ import annotations
@@ -15,10 +21,14 @@ import gymnasium as gym
 import numpy as np
 from dm_env import specs
 
-from sim import vocab
 from sim.engine import CONTROL_STEPS, Engine
+from sim.events import MERGE_GAP, labels, runs
+from sim.faults import fault_record
+from sim.imu import ImuNoise, decimate, decimation_factor, imu_noise
 from sim.random_scenarios import random_scenario
+from sim.rollout import steps_for
 from sim.scenario import Scenario
+from sim.vocab import SUB_KINDS
 from sim.world import build_world
 
 ENV_ID = "robot_anomaly/DiffDrive-v0"
@@ -67,45 +77,66 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         )
         self.observation_space = gym.spaces.Box(-self._high, self._high, dtype=np.float32)
         self._buffer = np.zeros((CONTROL_STEPS, self.world.model.nsensordata))
-        self._bias = np.zeros(7)
+        self._factor = decimation_factor(self.scenario.sensors, self.engine.dt)
+        self._n_samples = steps_for(self.scenario, self.engine.dt) // self._factor
+        self._noise: ImuNoise = imu_noise(self._n_samples, self.scenario.sensors, self.scenario.seed)
+        self._faults = tuple(
+            fault_record(f, self.world.robot.info, self.scenario.duration) for f in self.scenario.faults
+        )
+        self._touched: list[np.ndarray] = []
         self._left = np.array([1.0 if "left" in n else 0.0 for n in self.world.robot.info.wheel_names])
 
-    def _observe(self) -> np.ndarray:
+    def _observe(self, physics: np.ndarray) -> np.ndarray:
+        """Observation from the physics-rate sensors of the step (`physics`: (k, nsensordata))."""
         sl = self.world.sensors
-        sd = self.engine.sensordata
-        s = self.scenario.sensors
-        raw = np.concatenate(
-            [sd[sl.acc : sl.acc + 3], sd[sl.base_angvel : sl.base_angvel + 3], sd[sl.vel + 2 : sl.vel + 3]]
+        f = min(self._factor, physics.shape[0])
+        tail = physics[-f:]
+
+        def imu(start: int, width: int) -> np.ndarray:
+            return decimate(tail[:, start : start + width], f)  # (1, width): the step's last sample
+
+        done = round(self.engine.time / self.engine.dt) // self._factor  # IMU samples so far
+        i = max(done - 1, 0) % self._n_samples  # past the scenario's duration the noise repeats
+        acc, gyro, vel = self._noise.apply(
+            imu(sl.acc, 3), imu(sl.base_angvel, 3), imu(sl.vel + 2, 1)[:, 0], slice(i, i + 1)
         )
-        scale = np.array([s.acc_noise] * 3 + [s.gyro_noise] * 3 + [s.vel_noise])
-        imu = raw + self._bias + self.np_random.normal(0.0, 1.0, 7) * scale
+        sd = self.engine.sensordata
         w = self.n_wheels
         wheels = np.concatenate(
             [sd[sl.wheel_speed : sl.wheel_speed + w], sd[sl.wheel_torque : sl.wheel_torque + w]]
         )
-        return np.clip(np.concatenate([imu, wheels]), -self._high, self._high).astype(np.float32)
+        obs = np.concatenate([acc[0], gyro[0], vel, wheels])
+        return np.clip(obs, -self._high, self._high).astype(np.float32)
 
     def _info(self, contacts: list[dict[str, Any]]) -> dict[str, Any]:
         t = self.engine.time
-        label, sub, wheel = vocab.NORMAL, "none", -1
-        for f in self.scenario.faults:
-            if f.severity > 0 and f.onset <= t < f.onset + f.duration:
-                label, sub, wheel = vocab.MECHANICAL, f.kind, f.wheel
-        if contacts:
-            label, sub, wheel = vocab.COLLISION, contacts[0]["obstacle_kind"], -1
-        return {"time": t, "label": label, "sub_kind": sub, "label_wheel": wheel, "contacts": contacts}
+        dt = self.engine.dt
+        gap = max(1, round(MERGE_GAP / dt))
+        event_runs: list[tuple[int, int, int]] = []
+        if self._touched:
+            history = np.concatenate(self._touched)
+            for k in range(history.shape[1]):
+                event_runs += [(a, b, k) for a, b in runs(history[:, k], gap)]
+        label, sub, wheel = labels(np.array([t]), event_runs, self.world.obstacles, self._faults, dt)
+        return {
+            "time": t,
+            "label": int(label[0]),
+            "sub_kind": SUB_KINDS[int(sub[0])],
+            "label_wheel": int(wheel[0]),
+            "contacts": contacts,
+        }
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Put the robot back at the start; the seed drives the IMU noise and bias."""
+        """Put the robot back at the start. The IMU noise and bias are the scenario's (as `simulate` draws
+        them) when `seed` is None, else drawn by the same code from `seed`."""
         super().reset(seed=seed)
         self.engine.reset()
-        s = self.scenario.sensors
-        self._bias = self.np_random.normal(0.0, 1.0, 7) * np.array(
-            [s.acc_bias] * 3 + [s.gyro_bias] * 3 + [s.vel_bias]
-        )
-        return self._observe(), self._info([])
+        noise_seed = self.scenario.seed if seed is None else int(seed)
+        self._noise = imu_noise(self._n_samples, self.scenario.sensors, noise_seed)
+        self._touched = []
+        return self._observe(self.engine.sensordata[None, :]), self._info([])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One 40 ms control period with wheel speed commands `action` (left, right) in [-1, 1]."""
@@ -116,6 +147,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self.engine.step(cmd, self._buffer)
         k = len(self.world.obstacles)
         hits = self._buffer[:, sl.obstacle_contact : sl.obstacle_contact + 7 * k].reshape(-1, k, 7)
+        self._touched.append(hits[:, :, 0] > 0)
         touched = np.flatnonzero((hits[:, :, 0] > 0).any(axis=0))
         contacts = [
             {
@@ -128,7 +160,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         after = self.engine.sensordata[sl.base_pos : sl.base_pos + 2]
         reward = float(np.linalg.norm(after - before)) - float(len(contacts))
         truncated = self.engine.time >= self.scenario.duration - 1e-9
-        return self._observe(), reward, False, bool(truncated), self._info(contacts)
+        return self._observe(self._buffer), reward, False, bool(truncated), self._info(contacts)
 
 
 class DiffDriveDmEnv(dm_env.Environment):

@@ -74,7 +74,7 @@ MOTOR_DROOP = 0.25
 FULL_SPEED = 12.0
 """Wheel speed (rad/s) at which speed-scaled effects reach full size."""
 
-_RESONANCE: dict[str, tuple[float, float]] = {
+RESONANCE: dict[str, tuple[float, float]] = {
     "flat_spot": (160.0, 0.08),
     "imbalance": (28.0, 0.12),
     "bearing": (1600.0, 0.03),
@@ -105,7 +105,7 @@ def defect_order(kind: str, robot: RobotInfo) -> float:
 def fault_record(fault: Fault, robot: RobotInfo, episode: float) -> FaultRecord:
     """The trace's record of a fault, with the frequencies the audio stage needs."""
     rng = np.random.default_rng([0xFA17, robot.unit_id, fault.wheel])
-    f0, zeta = _RESONANCE[fault.kind]
+    f0, zeta = RESONANCE[fault.kind]
     return FaultRecord(
         kind=fault.kind,
         wheel=fault.wheel,

@@ -33,10 +33,59 @@ def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     return x[:n].reshape(n // factor, factor, *x.shape[1:]).mean(axis=1)
 
 
+@dataclass(frozen=True)
+class ImuNoise:
+    """The noise of every IMU sample of an episode, drawn once: a bias per axis, a bias random walk and white
+    noise. `simulate` and the Gymnasium environment both take their IMU noise from here."""
+
+    acc: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Accelerometer (bias (3,), walk (m, 3), white (m, 3)), m/s^2."""
+    gyro: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Gyroscope (bias (3,), walk (m, 3), white (m, 3)), rad/s."""
+    vel: tuple[np.ndarray, np.ndarray, np.ndarray]
+    """Z-velocity (bias (1,), walk (m, 1), white (m, 1)), m/s."""
+
+    def __len__(self) -> int:
+        return int(self.acc[1].shape[0])
+
+    @staticmethod
+    def _add(x: np.ndarray, parts: tuple[np.ndarray, np.ndarray, np.ndarray], index: slice) -> np.ndarray:
+        bias, walk, white = parts
+        return x + bias + walk[index] + white[index]
+
+    def apply(
+        self, acc: np.ndarray, gyro: np.ndarray, vel_z: np.ndarray, index: slice
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Noisy (acc (k, 3), gyro (k, 3), vel_z (k,)) of the noise-free samples at `index` of the episode."""
+        v = self._add(vel_z[:, None], self.vel, index)[:, 0]
+        return self._add(acc, self.acc, index), self._add(gyro, self.gyro, index), v
+
+
+def imu_noise(m: int, sensors: Sensors, seed: int) -> ImuNoise:
+    """The noise of an episode of `m` IMU samples, from a generator seeded by `seed` (the scenario's)."""
+    rng = np.random.default_rng([seed, 0x1A0])
+
+    def draw(axes: int, white: float, bias: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        offset = rng.normal(0.0, bias, size=(axes,))
+        walk = np.cumsum(rng.normal(0.0, sensors.bias_walk * white, size=(m, axes)), axis=0)
+        return offset, walk, rng.normal(0.0, white, size=(m, axes))
+
+    return ImuNoise(
+        acc=draw(3, sensors.acc_noise, sensors.acc_bias),
+        gyro=draw(3, sensors.gyro_noise, sensors.gyro_bias),
+        vel=draw(1, sensors.vel_noise, sensors.vel_bias),
+    )
+
+
+def decimation_factor(sensors: Sensors, dt: float) -> int:
+    """Physics steps per IMU sample."""
+    return max(1, round(1.0 / (sensors.imu_rate * dt)))
+
+
 def imu_samples(
     time: np.ndarray, acc: np.ndarray, gyro: np.ndarray, vel: np.ndarray, sensors: Sensors, seed: int
 ) -> ImuSamples:
-    """Decimate physics-rate IMU signals and add noise, bias and bias drift (seeded by `seed`).
+    """Decimate physics-rate IMU signals and add noise, bias and bias drift (`imu_noise(m, sensors, seed)`).
 
     Args:
         time: (n,) physics-rate times (n a multiple of the decimation factor).
@@ -47,18 +96,11 @@ def imu_samples(
         seed: scenario seed.
     """
     dt = float(time[1] - time[0]) if len(time) > 1 else float(time[0])
-    factor = max(1, round(1.0 / (sensors.imu_rate * dt)))
+    factor = decimation_factor(sensors, dt)
     t = time[factor - 1 :: factor][: len(time) // factor]
     m = len(t)
-    rng = np.random.default_rng([seed, 0x1A0])
-
-    def noisy(x: np.ndarray, white: float, bias: float) -> np.ndarray:
-        shape = x.shape
-        offset = rng.normal(0.0, bias, size=shape[1:])
-        walk = np.cumsum(rng.normal(0.0, sensors.bias_walk * white, size=shape), axis=0)
-        return x + offset + walk + rng.normal(0.0, white, size=shape)
-
-    a = noisy(decimate(acc, factor)[:m], sensors.acc_noise, sensors.acc_bias)
-    g = noisy(decimate(gyro, factor)[:m], sensors.gyro_noise, sensors.gyro_bias)
-    v = noisy(decimate(vel[:, 2:3], factor)[:m], sensors.vel_noise, sensors.vel_bias)[:, 0]
+    noise = imu_noise(m, sensors, seed)
+    a, g, v = noise.apply(
+        decimate(acc, factor)[:m], decimate(gyro, factor)[:m], decimate(vel[:, 2], factor)[:m], slice(0, m)
+    )
     return ImuSamples(time=t, acc=a, gyro=g, vel_z=v)

@@ -47,7 +47,7 @@ def _run(args: argparse.Namespace) -> int:
     info = build_robot(robot).info
     print("fault kinds (severity 0..1, wheel, onset, duration):")
     for kind in vocab.FAULT_KINDS:
-        f0, zeta = faults._RESONANCE[kind]
+        f0, zeta = faults.RESONANCE[kind]
         order = faults.defect_order(kind, info)
         print(f"  {kind:<18} defect order {order:7.2f}/rev  resonance {f0:6.0f} Hz  damping {zeta:.2f}")
     print(

@@ -88,3 +88,39 @@ def test_make_dm_env_default_scenario() -> None:
     env = make_dm_env(seed=4)
     ts = env.reset()
     assert ts.observation["wheels"].dtype == np.float32
+
+
+def test_observations_and_labels_are_the_traces_own() -> None:
+    """The env's IMU observation and label at each step equal those of the trace `simulate`'s code assembles
+    from the same physics (`assemble_trace`): the same decimation, the same noise, the same labels."""
+    from sim.events import LABEL_MARGIN_BEFORE
+    from sim.rollout import assemble_trace
+
+    scenario = straight(
+        duration=3.0, faults=(Fault("bearing", 1, 0.8, 0.1),), obstacles=(Obstacle("box", -8.5, 0.0),)
+    )
+    env = make_env(scenario)
+    env.reset()
+    physics, observed, infos = [], [], []
+    while True:
+        obs, _, _, truncated, info = env.step(np.array([1.0, 1.0], dtype=np.float32))
+        physics.append(env._buffer.copy())
+        observed.append(obs)
+        infos.append(info)
+        if truncated:
+            break
+    trace = assemble_trace(scenario, env.world, np.concatenate(physics), env.engine.dt)
+    per_step = len(trace.imu_time) // len(observed)
+    last = np.arange(1, len(observed) + 1) * per_step - 1
+    imu = np.concatenate([trace.imu_acc, trace.imu_gyro, trace.imu_vel_z[:, None]], axis=1)[last]
+    np.testing.assert_allclose(np.stack(observed)[:, :7], imu.astype(np.float32), rtol=0, atol=0)
+    times = np.array([i["time"] for i in infos])
+    np.testing.assert_allclose(trace.imu_time[last], times, rtol=0, atol=1e-9)
+    got = np.array([i["label"] for i in infos])
+    want = trace.label[last]
+    assert {sim.vocab.MECHANICAL, sim.vocab.COLLISION} <= set(got.tolist())
+    first_step = float(trace.contacts.time[0]) - env.engine.dt  # the contact's first physics step starts here
+    acausal = (times >= first_step - LABEL_MARGIN_BEFORE - 1e-9) & (times < first_step + env.engine.dt)
+    np.testing.assert_array_equal(got[~acausal], want[~acausal])
+    subs = [sim.vocab.SUB_KINDS[k] for k in trace.sub_kind[last]]
+    assert [i["sub_kind"] for i in np.array(infos)[~acausal]] == list(np.array(subs)[~acausal])

@@ -3,6 +3,10 @@
 `write_episode` writes the five files into a folder that must not exist yet (through a temporary folder
 renamed into place); `read_episode` reads them back and checks the format version. The files are
 deterministic: the same trace and audio give the same bytes, so the manifest's sha256 are reproducible.
+
+An episode imported from real recordings (`msvdd-bench import`, `benchmarks.importers`) has no simulator
+trace: its `meta.json` says `"source": "import"` and lists its `modalities`, and it holds every file but
+`trace.npz` (`IMPORTED_EPISODE_FILES`).
 """
 
 from __future__ import annotations
@@ -27,6 +31,13 @@ EPISODE_FORMAT_VERSION = 1
 
 EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "trace.npz", "events.json", "meta.json")
 """The files of one episode folder."""
+
+SIMULATED, IMPORTED = "simulate", "import"
+"""Where an episode comes from (`meta.json` `source`; absent means simulated)."""
+IMPORTED_EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "events.json", "meta.json")
+"""The files of an imported episode folder: no `trace.npz`, there is no simulator behind it."""
+ALL_MODALITIES: tuple[str, ...] = ("audio", "imu")
+"""Sensors an episode can carry; a simulated one carries both."""
 
 
 class EpisodeError(UserError):
@@ -79,9 +90,19 @@ class Episode:
     """(m,) sub-kind index per IMU sample (`sim.vocab.SUB_KINDS`)."""
     label_wheel: np.ndarray
     """(m,) wheel index of a mechanical label, -1 otherwise."""
+    source: str = SIMULATED
+    """`simulate` (generated) or `import` (real recordings: no trace, `scenario` empty)."""
+    modalities: tuple[str, ...] = ALL_MODALITIES
+    """Sensors recorded; without `imu`, the IMU arrays are all-zero placeholders of the right length."""
 
     def trace(self) -> Trace:
-        """The full simulator trace (read on demand: it is the largest file)."""
+        """The full simulator trace (read on demand: it is the largest file).
+
+        Raises:
+            EpisodeError: the episode was imported from recordings and has no trace.
+        """
+        if self.source == IMPORTED:
+            raise EpisodeError(f"{self.path}: imported from recordings, so it has no simulator trace")
         return Trace.load(self.path / "trace.npz")
 
     def events(self) -> dict[str, Any]:
@@ -202,10 +223,13 @@ def read_episode(directory: Path) -> Episode:
     directory = Path(directory)
     if not directory.is_dir():
         raise InputNotFoundError(f"episode folder not found: {directory}")
-    for name in EPISODE_FILES:
+    if not (directory / "meta.json").is_file():
+        raise EpisodeError(f"{directory}: missing episode file meta.json")
+    meta_doc = json.loads((directory / "meta.json").read_text())
+    source = str(meta_doc.get("source", SIMULATED))
+    for name in IMPORTED_EPISODE_FILES if source == IMPORTED else EPISODE_FILES:
         if not (directory / name).is_file():
             raise EpisodeError(f"{directory}: missing episode file {name}")
-    meta_doc = json.loads((directory / "meta.json").read_text())
     version = meta_doc.get("format_version")
     if version != EPISODE_FORMAT_VERSION:
         raise EpisodeError(
@@ -227,6 +251,8 @@ def read_episode(directory: Path) -> Episode:
         label=arrays["label"],
         sub_kind=arrays["sub_kind"],
         label_wheel=arrays["label_wheel"],
+        source=source,
+        modalities=tuple(meta_doc.get("modalities", ALL_MODALITIES)),
     )
 
 

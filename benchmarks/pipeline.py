@@ -17,6 +17,7 @@ from tqdm import tqdm
 from benchmarks import methods
 from benchmarks.dataset import Dataset, DatasetError, WindowRow
 from benchmarks.metrics import MethodMetrics, compute_metrics
+from benchmarks.modalities import require_modalities
 from msvdd.contract import Detector, Windows
 
 
@@ -47,7 +48,7 @@ class MethodScores:
     scores: np.ndarray
     """(N,) test scores, in test-row order."""
     threshold: float
-    """The detector's threshold_ (from training data)."""
+    """The detector's threshold_ (fixed at fit time from nominal data: `msvdd.contract.Detector`)."""
 
 
 def train_method(
@@ -64,8 +65,10 @@ def train_method(
     """Fit method `name` on the dataset's train windows (val for model selection) and save it to `out`.
 
     `device` is where a torch method trains; `progress` shows the bars of loading the windows and of
-    training (None: no loading bar, the method's own training default).
+    training (None: no loading bar, the method's own training default). A method that reads a sensor the
+    dataset lacks (an audio-only import) is refused (`benchmarks.modalities.MissingModalityError`).
     """
+    require_modalities(dataset.path, dataset.manifest, name)
     if train is None:
         train, _ = dataset.load_windows("train", progress=bool(progress))
     if val is None and dataset.rows("val"):
@@ -94,7 +97,8 @@ def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, n
     """(episode ids, onset times) of every anomalous event in the test episodes behind `rows`.
 
     Collision events are the contact events of collision episodes; fault events are the onsets of the
-    faults of fault episodes. Used for detection delays.
+    faults of fault episodes; imported episodes list the onsets of their labelled spans (`anomalies`).
+    Used for detection delays.
     """
     category = {e["episode_id"]: e["category"] for e in dataset.manifest["episodes"]}
     episodes: list[str] = []
@@ -103,6 +107,7 @@ def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, n
         events = json.loads((dataset.path / episode_id / "events.json").read_text())
         times = [c["time"] for c in events["contacts"]] if category[episode_id] == "collision" else []
         times += [f["onset"] for f in events["faults"] if f["severity"] > 0]
+        times += [a["onset"] for a in events.get("anomalies", [])]
         episodes += [episode_id] * len(times)
         onsets += times
     return np.asarray(episodes, dtype=str), np.asarray(onsets, dtype=np.float64)
@@ -114,7 +119,12 @@ def score_and_measure(
     test: tuple[Windows, list[WindowRow]] | None = None,
     progress: bool = True,
 ) -> tuple[list[MethodScores], dict[str, list[MethodMetrics]], list[WindowRow]]:
-    """Score every model on the test windows and compute its metrics (one entry per seed)."""
+    """Score every model on the test windows and compute its metrics (one entry per seed).
+
+    A model whose method reads a sensor the dataset lacks is refused before any scoring.
+    """
+    for model in models:
+        require_modalities(dataset.path, dataset.manifest, model.method)
     windows, rows = test if test is not None else test_windows(dataset)
     kinds = np.array([r.kind for r in rows])
     sub_kinds = np.array([r.sub_kind for r in rows])

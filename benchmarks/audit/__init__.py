@@ -5,6 +5,6 @@
 """
 
 from benchmarks.audit.core import run_audit
-from benchmarks.audit.report import FAIL, PASS, REPORT, AuditResult, ProbeRow, markdown, write
+from benchmarks.audit.report import FAIL, PASS, REPORT, SKIP, AuditResult, ProbeRow, markdown, write
 
-__all__ = ["FAIL", "PASS", "REPORT", "AuditResult", "ProbeRow", "markdown", "run_audit", "write"]
+__all__ = ["FAIL", "PASS", "REPORT", "SKIP", "AuditResult", "ProbeRow", "markdown", "run_audit", "write"]

@@ -21,6 +21,11 @@ The probes (limits in `benchmarks.audit.report`):
 
 Scalars carry no direction, so they are judged two-sided (max(AUC, 1 - AUC)); detectors are judged by
 their AUC as it is (higher = flagged as more anomalous).
+
+A dataset imported from recordings (`msvdd-bench import`) has no simulator behind it: the behaviour,
+deleted-sound, ambience and context probes are skipped (rows with status SKIP and the reason), and the
+others run on what was recorded. Without IMU (an audio-only import) the IMU acceleration peak is skipped
+and the reference detector is the audio-only one (`gaussian-audio`).
 """
 
 from __future__ import annotations
@@ -50,9 +55,10 @@ from benchmarks.audit.report import (
     ProbeRow,
 )
 from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_config, open_dataset
-from benchmarks.episode import read_episode
+from benchmarks.episode import IMPORTED, read_episode
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
+from benchmarks.modalities import dataset_modalities
 from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
 from msvdd import preprocess
 from msvdd.contract import IMU_RATE, WINDOW_S, Windows
@@ -75,6 +81,15 @@ is what a contact does to a robot (it stops against the obstacle, then its refle
 what audio hears of the stop is limited by the deleted-sound probe."""
 NAIVE_AUDIO = ("rms", "peak", "crest", "flux")
 """Naive audio scalars with limits (the IMU acceleration peak is reported)."""
+NO_TRACE = "imported data has no simulator trace"
+"""Why the probes that need the simulator's ground truth are skipped on an imported dataset."""
+TRACE_PROBES: tuple[tuple[str, str], ...] = (
+    ("behaviour", "reads the robot's ground-truth motion"),
+    ("context", "reads the simulated arena's size"),
+    ("deleted", "renders the anomaly episodes again without their own sound"),
+    ("ambience", "renders the environment's noise beds again"),
+)
+"""(group, what it needs) of the probes that need the simulator."""
 
 
 @dataclass
@@ -136,7 +151,7 @@ def context_starts(
     return np.array(out)
 
 
-def _collect(data: Dataset, progress: bool) -> _Collected:
+def _collect(data: Dataset, progress: bool, simulated: bool, has_imu: bool) -> _Collected:
     specs = data.episode_specs()
     by_episode: dict[str, list[WindowRow]] = {}
     for row in data.rows("test"):
@@ -148,11 +163,13 @@ def _collect(data: Dataset, progress: bool) -> _Collected:
         got.rows += rows
         for name, values in signals.audio_levels(episode.audio, episode.audio_rate, starts).items():
             got.add(name, values)
-        got.add("acc_peak", signals.acceleration_peak(episode.imu6[:, :3], IMU_RATE, starts))
-        for name, values in _kinematics(data.path / episode_id / "trace.npz", starts).items():
-            got.add(name, values)
-        hx, hy = episode.scenario["arena"]
-        got.area += [4.0 * hx * hy] * len(rows)
+        if has_imu:
+            got.add("acc_peak", signals.acceleration_peak(episode.imu6[:, :3], IMU_RATE, starts))
+        if simulated:
+            for name, values in _kinematics(data.path / episode_id / "trace.npz", starts).items():
+                got.add(name, values)
+            hx, hy = episode.scenario["arena"]
+            got.area += [4.0 * hx * hy] * len(rows)
         audio4410 = preprocess.decimate_audio(episode.audio)
         w = preprocess.frame_windows(audio4410, episode.imu_vel_z, starts, imu6=episode.imu6)
         assert w.imu6 is not None
@@ -246,7 +263,9 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     """Every probe on a dataset's test windows (the dataset is verified first)."""
     started = time.perf_counter()
     data = open_dataset(Path(dataset))
-    got = _collect(data, progress)
+    simulated = data.manifest.get("source") != IMPORTED
+    has_imu = "imu" in dataset_modalities(data.manifest)
+    got = _collect(data, progress, simulated, has_imu)
     kinds = np.array([r.kind for r in got.rows])
     subs = np.array([r.sub_kind for r in got.rows])
     episodes = np.array([r.episode for r in got.rows])
@@ -276,10 +295,17 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     def behaviour_limit(target: str) -> float | None:
         return BEHAVIOUR_LIMIT if target == "collision" else None
 
-    for name in BEHAVIOUR_PROBES:
-        scalar_rows("behaviour", name, behaviour_limit)
-    scalar_rows("behaviour", "standing", lambda t: None)
-    scalar_rows("behaviour", "peak_deceleration", lambda t: None)
+    def skip(group: str, probe: str, reason: str) -> None:
+        rows.append(ProbeRow(group, probe, "-", math.nan, None, "-", skipped=reason))
+
+    if simulated:
+        for name in BEHAVIOUR_PROBES:
+            scalar_rows("behaviour", name, behaviour_limit)
+        scalar_rows("behaviour", "standing", lambda t: None)
+        scalar_rows("behaviour", "peak_deceleration", lambda t: None)
+    else:
+        for group, needs in TRACE_PROBES:
+            skip(group, "every probe", f"{NO_TRACE}; this probe {needs}")
 
     # Naive scalars.
     def naive_limit(target: str) -> float | None:
@@ -289,7 +315,10 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
 
     for name in NAIVE_AUDIO:
         scalar_rows("naive", name, naive_limit)
-    scalar_rows("naive", "acc_peak", lambda t: None)
+    if has_imu:
+        scalar_rows("naive", "acc_peak", lambda t: None)
+    else:
+        skip("naive", "acc_peak", "the dataset has no IMU modality")
     # Clipping.
     clip = signals.clipped(np.asarray(got.scalars["peak"]))
     for label in ("normal", "collision", "mechanical"):
@@ -320,25 +349,27 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
             )
         )
     # Context: arena size.
-    area = np.asarray(got.area)
-    raw = _auc(area, normal, ~normal)
-    rows.append(
-        ProbeRow(
-            "context",
-            "arena area",
-            "overall",
-            _two_sided(raw),
-            CONTEXT_LIMIT,
-            "auc2",
-            f"AUC {raw:.3f}; median m2 normal {np.median(area[normal]):.0f}, "
-            f"anomalous {np.median(area[~normal]):.0f}",
+    if simulated:
+        area = np.asarray(got.area)
+        raw = _auc(area, normal, ~normal)
+        rows.append(
+            ProbeRow(
+                "context",
+                "arena area",
+                "overall",
+                _two_sided(raw),
+                CONTEXT_LIMIT,
+                "auc2",
+                f"AUC {raw:.3f}; median m2 normal {np.median(area[normal]):.0f}, "
+                f"anomalous {np.median(area[~normal]):.0f}",
+            )
         )
-    )
 
-    # Reference detectors, fitted on the nominal training windows.
+    # Reference detectors, fitted on the nominal training windows (audio only without an IMU).
     train, _ = data.load_windows("train")
     test = got.windows()
-    early = GaussianReference("early").fit(train)
+    reference = "early" if has_imu else "audio"
+    early = GaussianReference(reference).fit(train)
     audio_only = GaussianReference("audio").fit(train)
     del train
     s_early = early.score(test)
@@ -348,7 +379,7 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     rows.append(
         ProbeRow(
             "reference",
-            "gaussian-early CI half-width",
+            f"gaussian-{reference} CI half-width",
             "overall",
             interval.half_width,
             REFERENCE_HALF_WIDTH_LIMIT,
@@ -362,10 +393,16 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
         ci = auc_interval(s_early[keep], mask[keep], episodes[keep])
         rows.append(
             ProbeRow(
-                "reference", "gaussian-early", target, ci.value, None, "auc", f"[{ci.low:.3f}, {ci.high:.3f}]"
+                "reference",
+                f"gaussian-{reference}",
+                target,
+                ci.value,
+                None,
+                "auc",
+                f"[{ci.low:.3f}, {ci.high:.3f}]",
             )
         )
-    for target, mask in targets[:3]:
+    for target, mask in targets[:3] if reference != "audio" else ():  # audio-only: the reference itself
         rows.append(
             ProbeRow(
                 "reference",
@@ -393,7 +430,7 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
                 rows.append(
                     ProbeRow(
                         "leak",
-                        "gaussian-early",
+                        f"gaussian-{reference}",
                         target,
                         raw,
                         LEAK_LIMIT,
@@ -402,6 +439,21 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
                     )
                 )
 
+    if simulated:
+        rows += _simulator_probes(data, got, s_audio, audio_only, progress)
+    preset = str(data.manifest["preset"]["name"])
+    return AuditResult(
+        str(data.path), preset, int(data.manifest["seed"]), tuple(rows), time.perf_counter() - started
+    )
+
+
+def _simulator_probes(
+    data: Dataset, got: _Collected, s_audio: np.ndarray, audio_only: GaussianReference, progress: bool
+) -> list[ProbeRow]:
+    """The deleted-sound and ambience probes: they render audio again from the stored simulator traces."""
+    rows: list[ProbeRow] = []
+    kinds = np.array([r.kind for r in got.rows])
+    normal = kinds == "normal"
     # Deleted sound: re-render the anomaly episodes without it.
     muted, muted_rows = _deleted_windows(data, got.rows, progress)
     s_muted = audio_only.score(muted)
@@ -435,8 +487,4 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
         rows.append(
             ProbeRow("ambience", "autocorrelation beyond 1 s", episode_id, value, REPETITION_LIMIT, "acf")
         )
-
-    preset = str(data.manifest["preset"]["name"])
-    return AuditResult(
-        str(data.path), preset, int(data.manifest["seed"]), tuple(rows), time.perf_counter() - started
-    )
+    return rows

@@ -1,4 +1,5 @@
-"""The audit's verdict: one row per probe with its figure, its limit and PASS, FAIL or REPORT.
+"""The audit's verdict: one row per probe with its figure, its limit and PASS, FAIL or REPORT (or SKIP: a
+probe that could not run on this dataset, with the reason).
 
 The limits are those of the `paper` preset (issue 10 of the project): they are what a benchmark whose
 anomalies must be heard or felt, not guessed from context, has to satisfy. On smaller presets the same
@@ -15,7 +16,7 @@ from typing import Any
 
 from benchmarks.methods._io import write_text_atomic
 
-PASS, FAIL, REPORT = "PASS", "FAIL", "REPORT"
+PASS, FAIL, REPORT, SKIP = "PASS", "FAIL", "REPORT", "SKIP"
 
 BEHAVIOUR_LIMIT = 0.65
 """Most a behaviour probe (reversing, turning in place, yaw rate) may separate collisions, two-sided AUC."""
@@ -55,10 +56,14 @@ class ProbeRow:
     """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`."""
     detail: str = ""
     """Context for a reader: the raw AUC, counts, an interval."""
+    skipped: str = ""
+    """Why the probe did not run (e.g. imported data has no simulator trace); empty when it ran."""
 
     @property
     def status(self) -> str:
-        """PASS or FAIL against the limit; REPORT without one (or without data: NaN)."""
+        """PASS or FAIL against the limit; REPORT without one (or without data: NaN); SKIP if not run."""
+        if self.skipped:
+            return SKIP
         if self.limit is None or not math.isfinite(self.figure):
             return REPORT
         return PASS if self.figure <= self.limit else FAIL
@@ -111,12 +116,22 @@ def _fmt(x: float | None, unit: str) -> str:
     return f"{x:.3f}"
 
 
+def _skipped_lines(result: AuditResult) -> list[str]:
+    skipped = [r for r in result.rows if r.status == SKIP]
+    if not skipped:
+        return []
+    return ["", f"{len(skipped)} probe(s) skipped, each with its reason in the table:"] + [
+        f"- {r.group} / {r.probe}: {r.skipped}" for r in skipped
+    ]
+
+
 def markdown(result: AuditResult) -> str:
     """The audit as a Markdown table, failures listed first in a summary line."""
     lines = [
         f"# Audit of `{result.dataset}` (preset {result.preset}, seed {result.seed})",
         "",
         f"{len(result.rows)} probes, {len(result.failed)} over their limit; {result.seconds:.0f} s.",
+        *_skipped_lines(result),
         "",
         "`auc2` is max(AUC, 1 - AUC): a fixed scalar separates in either direction. Limits are the `paper`",
         "preset's.",
@@ -128,7 +143,7 @@ def markdown(result: AuditResult) -> str:
         limit = "-" if r.limit is None else _fmt(r.limit, r.unit)
         lines.append(
             f"| {r.group} | {r.probe} | {r.target} | {_fmt(r.figure, r.unit)} | {r.unit} | {limit} | "
-            f"{r.status} | {r.detail} |"
+            f"{r.status} | {r.skipped or r.detail} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -20,7 +20,7 @@ def _run(args: argparse.Namespace) -> int:
     from sim.world import SURFACES
 
     check_seed(args.seed)
-    print(f"presets (seed {args.seed}; `msvdd-bench simulate --preset NAME --seed N --out T.npz`):")
+    print(f"presets (seed {args.seed}; `msvdd-bench simulate --scenario NAME --seed N --out T.npz`):")
     for name, factory in sim.scenario_presets().items():
         sc = factory(args.seed)
         extra = ""

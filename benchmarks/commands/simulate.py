@@ -12,11 +12,16 @@ from benchmarks.errors import UserError, check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--preset", help="a named scenario preset (see `msvdd-bench scenarios`)")
-    source.add_argument("--scenario", type=Path, help="a scenario TOML file (see assets/scenarios/)")
     p.add_argument(
-        "--seed", type=int, default=None, help="seed (preset default 0; overrides the file's seed)"
+        "--scenario",
+        required=True,
+        help="a named scenario preset (`msvdd-bench scenarios`) or a scenario TOML file (assets/scenarios/)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="scenario seed (a named preset's default 0; overrides the file's seed)",
     )
     p.add_argument("--out", type=Path, required=True, help="where to write the trace (.npz)")
 
@@ -30,15 +35,17 @@ def _run(args: argparse.Namespace) -> int:
         check_seed(args.seed)
     if args.out.suffix != ".npz":
         raise UserError(f"--out = {str(args.out)!r} is invalid; allowed: a path ending in .npz")
-    if args.preset is not None:
-        presets = sim.scenario_presets()
-        if args.preset not in presets:
-            raise UserError(f"--preset = {args.preset!r} is unknown; allowed: {', '.join(presets)}")
-        scenario = presets[args.preset](0 if args.seed is None else args.seed)
-    else:
-        scenario = sim.Scenario.from_toml(args.scenario)
+    presets = sim.scenario_presets()
+    if args.scenario in presets:
+        scenario = presets[args.scenario](0 if args.seed is None else args.seed)
+    elif args.scenario.endswith(".toml"):
+        scenario = sim.Scenario.from_toml(Path(args.scenario))
         if args.seed is not None:
             scenario = scenario.replace(seed=args.seed)
+    else:
+        raise UserError(
+            f"--scenario = {args.scenario!r} is unknown; allowed: a .toml file or one of {', '.join(presets)}"
+        )
     start = time.perf_counter()
     trace = sim.simulate(scenario)
     wall = time.perf_counter() - start
@@ -95,7 +102,7 @@ COMMAND = Command(
     add_arguments=_add_arguments,
     run=_run,
     example=(
-        "msvdd-bench simulate --preset collision_wall --seed 0 --out /tmp/collision.npz\n"
+        "msvdd-bench simulate --scenario collision_wall --seed 0 --out /tmp/collision.npz\n"
         "msvdd-bench simulate --scenario assets/scenarios/fault_bearing.toml --out /tmp/bearing.npz"
     ),
 )

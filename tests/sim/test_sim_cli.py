@@ -13,7 +13,7 @@ from sim.robot import asset_path
 
 def test_simulate_preset_writes_a_loadable_trace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "t.npz"
-    assert main(["simulate", "--preset", "fault_bearing", "--seed", "2", "--out", str(out)]) == 0
+    assert main(["simulate", "--scenario", "fault_bearing", "--seed", "2", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "fault      bearing" in text and "duration" in text and "distance" in text
     trace = Trace.load(out)
@@ -34,8 +34,8 @@ def test_simulate_scenario_file(tmp_path: Path, capsys: pytest.CaptureFixture[st
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--preset", "nope"], "--preset = 'nope' is unknown; allowed: nominal_indoor"),
-        (["--preset", "nominal_indoor", "--seed", "-3"], "--seed = -3 is invalid"),
+        (["--scenario", "nope"], "--scenario = 'nope' is unknown; allowed: a .toml file or one of nominal"),
+        (["--scenario", "nominal_indoor", "--seed", "-3"], "--seed = -3 is invalid"),
         (["--scenario", "missing.toml"], "scenario file not found: missing.toml"),
     ],
 )

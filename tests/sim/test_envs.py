@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -124,3 +126,29 @@ def test_observations_and_labels_are_the_traces_own() -> None:
     np.testing.assert_array_equal(got[~acausal], want[~acausal])
     subs = [sim.vocab.SUB_KINDS[k] for k in trace.sub_kind[last]]
     assert [i["sub_kind"] for i in np.array(infos)[~acausal]] == list(np.array(subs)[~acausal])
+
+
+def _for_model(scenario: sim.Scenario, model: str) -> sim.Scenario:
+    """`scenario` driven by robot `model` (a fault on a wheel the model lacks moves to wheel % its wheels)."""
+    wheels = len(sim.scenario.wheel_names(model))
+    faults = tuple(dataclasses.replace(f, wheel=f.wheel % wheels) for f in scenario.faults)
+    return scenario.replace(robot=dataclasses.replace(scenario.robot, model=model), faults=faults)
+
+
+@pytest.mark.parametrize("model", sim.scenario.ROBOT_MODELS)
+@pytest.mark.parametrize("preset", list(sim.scenario_presets()))
+def test_every_scenario_preset_runs_for_every_robot_model(preset: str, model: str) -> None:
+    """dm_control's suite test, here: each scenario preset for each robot model loads, resets and steps
+    with random actions, and every observation conforms to its spec and is finite."""
+    scenario = _for_model(sim.scenario_presets()[preset](3), model)
+    env = make_dm_env(scenario, seed=3)
+    spec = env.observation_spec()
+    assert spec["wheels"].shape == (2 * len(sim.scenario.wheel_names(model)),)
+    rng = np.random.default_rng(0)
+    ts = env.reset()
+    for _ in range(12):
+        for key, value in ts.observation.items():
+            spec[key].validate(value)
+            assert np.all(np.isfinite(value)), (preset, model, key)
+        assert env.last_info["label"] in (sim.vocab.NORMAL, sim.vocab.COLLISION, sim.vocab.MECHANICAL)
+        ts = env.step(rng.uniform(-1, 1, 2).astype(np.float32))

@@ -251,7 +251,7 @@ class MSVDD(Detector):
                 outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
         return torch.cat(outs)
 
-    def _rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+    def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
         """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
         cfg = self.config
         pairs = []
@@ -276,7 +276,7 @@ class MSVDD(Detector):
                 a, i = a.to(self.device), i.to(self.device)
                 out = self.module.net(a, i)
                 d_all.append(mahalanobis(out.z.to(torch.float64), self.mu_, self.sigma_).cpu())
-                parts = self._rec_parts(out, a, i) if self.config.use_reconstruction else []
+                parts = self.rec_parts(out, a, i) if self.config.use_reconstruction else []
                 parts_all.append(
                     torch.stack(parts, dim=1).to(torch.float64).cpu()
                     if parts

@@ -1,0 +1,176 @@
+"""The ONNX export of M-SVDD's scoring path: parity with torch on real windows at two batch sizes, the CLI
+round trip, the ONNX Runtime backend of the streaming scorer, the graph without export for every variant,
+and what the export refuses."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import onnx
+import pytest
+import torch
+
+from benchmarks.cli import main
+from benchmarks.dataset import open_dataset
+from benchmarks.episode import read_episode
+from benchmarks.methods import load_detector
+from msvdd.config import MSVDDConfig
+from msvdd.contract import WindowError, Windows
+from msvdd.export import ExportOptions, export_onnx, max_relative_difference
+from msvdd.model import MSVDD, NotFittedError
+from msvdd.onnx_backend import MANIFEST_FILE, ONNX_FILE, OnnxFormatError, OnnxScorer
+from msvdd.score_graph import ScoreGraph
+from msvdd.stream import StreamingScorer
+from msvdd.synthetic import toy_windows
+
+RTOL = 1e-4
+
+
+@pytest.fixture(scope="module")
+def exported(tiny_model: Path, tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The tiny M-SVDD model exported through the CLI, checked on the dataset's test windows."""
+    out = tmp_path_factory.mktemp("onnx") / "msvdd"
+    argv = ["export", str(tiny_model), "--out", str(out), "--data", str(tiny_dataset), "--check-windows", "8"]
+    assert main(argv) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def torch_model(tiny_model: Path) -> MSVDD:
+    _, detector = load_detector(tiny_model)
+    assert isinstance(detector, MSVDD)
+    return detector
+
+
+@pytest.fixture(scope="module")
+def real_windows(tiny_dataset: Path) -> Windows:
+    """The tiny dataset's test windows (nominal and anomalous, decimated from simulated recordings)."""
+    return open_dataset(tiny_dataset).load_windows("test")[0]
+
+
+def test_cli_writes_the_graph_and_its_description(exported: Path, torch_model: MSVDD) -> None:
+    assert sorted(p.name for p in exported.iterdir()) == [ONNX_FILE, MANIFEST_FILE]
+    assert [p.name for p in exported.parent.iterdir()] == [exported.name]  # no temporary folder left
+    info = json.loads((exported / MANIFEST_FILE).read_text())
+    assert info["format"] == "msvdd-onnx" and info["method"] == "msvdd"
+    assert info["threshold"] == torch_model.threshold_
+    assert [i["name"] for i in info["inputs"]] == ["audio", "imu", "imu6"]  # "msvdd" reads all IMU axes
+    assert info["window"] == {
+        "seconds": 2.0,
+        "audio_rate_hz": 4410.0,
+        "audio_samples": 8820,
+        "audio_channels": 2,
+        "imu_rate_hz": 200.0,
+        "imu_samples": 400,
+    }
+    assert info["parity"]["max_rel_diff"] <= RTOL and info["parity"]["windows"] == 8
+    assert "test" in info["parity"]["source"]
+    graph = onnx.load(str(exported / ONNX_FILE)).graph
+    for value in graph.input:
+        batch = value.type.tensor_type.shape.dim[0]
+        assert batch.dim_param and not batch.HasField("dim_value")  # a dynamic batch dimension
+    assert graph.output[0].type.tensor_type.elem_type == onnx.TensorProto.DOUBLE
+
+
+def test_onnx_scores_match_torch_on_real_windows_at_two_batch_sizes(
+    exported: Path, torch_model: MSVDD, real_windows: Windows
+) -> None:
+    scorer = OnnxScorer.load(exported)
+    assert scorer.threshold_ == torch_model.threshold_
+    spread = np.linspace(0, len(real_windows) - 1, 7).round().astype(int)
+    for index in (spread[3:4], spread):  # batch sizes 1 and 7
+        batch = real_windows.subset(index)
+        assert max_relative_difference(scorer.score(batch), torch_model.score(batch)) <= RTOL
+    every = scorer.score(real_windows)
+    reference = torch_model.score(real_windows)
+    assert max_relative_difference(every, reference) <= RTOL
+    assert every.dtype == np.float64 and np.ptp(every) > 0  # not a constant score
+    clear = np.abs(reference - torch_model.threshold_) > 1e-3 * abs(torch_model.threshold_)
+    assert np.array_equal(scorer.predict(real_windows)[clear], torch_model.predict(real_windows)[clear])
+
+
+def test_streaming_scorer_takes_the_onnx_backend(
+    exported: Path, torch_model: MSVDD, tiny_dataset: Path
+) -> None:
+    episode_id = open_dataset(tiny_dataset).rows("test")[0].episode
+    episode = read_episode(tiny_dataset / episode_id)
+    seconds = 5.0
+    audio = episode.audio[: int(44100 * seconds)]
+    imu, imu6 = episode.imu_vel_z[: int(200 * seconds)], episode.imu6[: int(200 * seconds)]
+    results = []
+    for backend in (torch_model, OnnxScorer.load(exported)):
+        scorer = StreamingScorer(backend, hop_s=0.5)
+        emitted = scorer.push(audio[:50_000], imu[:200], imu6[:200])
+        emitted += scorer.push(audio[50_000:], imu[200:], imu6[200:])
+        results.append(emitted)
+    (torch_out, onnx_out) = results
+    assert [s for s, _ in onnx_out] == [s for s, _ in torch_out] and len(onnx_out) >= 5
+    got, want = np.array([v for _, v in onnx_out]), np.array([v for _, v in torch_out])
+    assert max_relative_difference(got, want) <= RTOL
+
+
+def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> None:
+    train, _ = toy_windows(48, 0, seed=0)
+    model = MSVDD(MSVDDConfig.tiny(epochs=1, val_fraction=0.0)).fit(train)  # waveform, z-velocity, mean Rec
+    manifest = export_onnx(model, tmp_path / "paper", ExportOptions(example_windows=3, check_windows=4))
+    assert manifest.inputs == ("audio", "imu") and manifest.parity_max_rel <= RTOL
+    scorer = OnnxScorer.load(tmp_path / "paper")
+    windows, _ = toy_windows(4, 4, seed=5)
+    no_imu6 = Windows(audio=windows.audio, imu=windows.imu)
+    for n in (1, 7):
+        batch = no_imu6.subset(slice(0, n))
+        assert max_relative_difference(scorer.score(batch), model.score(batch)) <= RTOL
+    assert scorer.score(no_imu6.subset(slice(0, 0))).shape == (0,)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"use_mahalanobis": False},
+        {"use_reconstruction": False},
+        {"use_imu": False},
+        {"use_audio": False},
+        {"fusion": "concat"},
+        {"audio_frontend": "logmel", "rec_score": "mean"},
+        {"imu_input": "all", "rec_score": "peak", "smooth_window": 0},
+    ],
+    ids=lambda o: "-".join(f"{k}={v}" for k, v in o.items()),
+)
+def test_score_graph_reproduces_msvdd_score_for_every_variant(overrides: dict[str, object]) -> None:
+    """The graph that is exported, run in torch: every ablation and front end gives MSVDD.score."""
+    train, _ = toy_windows(48, 0, seed=0)
+    model = MSVDD(MSVDDConfig.tiny(epochs=1, val_fraction=0.0, **overrides)).fit(train)
+    batch, _ = toy_windows(3, 3, seed=2)
+    graph = ScoreGraph(model).eval()
+    with torch.inference_mode():
+        got = graph(*(torch.from_numpy(x) for x in (batch.audio, batch.imu, batch.imu6))).numpy()
+    assert max_relative_difference(got, model.score(batch)) <= RTOL
+
+
+def test_export_refusals(
+    exported: Path,
+    tiny_model: Path,
+    real_windows: Windows,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["export", str(tiny_model), "--out", str(exported)]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert main(["export", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "nothing" in err
+    with pytest.raises(WindowError, match="imu6"):
+        OnnxScorer.load(exported).score(Windows(audio=real_windows.audio[:1], imu=real_windows.imu[:1]))
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / MANIFEST_FILE).write_text(json.dumps({"format": "msvdd-onnx", "format_version": 99}))
+    with pytest.raises(OnnxFormatError, match="format_version 99"):
+        OnnxScorer.load(broken)
+    with pytest.raises(FileNotFoundError, match=MANIFEST_FILE):
+        OnnxScorer.load(tmp_path)
+    with pytest.raises(NotFittedError):
+        export_onnx(MSVDD(MSVDDConfig.tiny()), tmp_path / "unfitted")
+    with pytest.raises(ValueError, match="example_windows"):
+        ExportOptions(example_windows=1)

@@ -25,6 +25,7 @@ from pathlib import Path
 from benchmarks.dataset import DATASET_FORMAT_VERSION, DatasetError, generate, open_dataset
 from benchmarks.episode import software_versions
 from benchmarks.errors import check_seed
+from benchmarks.executor import Executor
 from benchmarks.presets import get_preset
 
 KEY_LENGTH = 16
@@ -81,9 +82,15 @@ def cache_entry(cache: Path, preset_name: str, seed: int) -> Path:
 
 
 def cached_dataset(
-    cache: Path, preset_name: str, seed: int, workers: int | None = None, progress: bool = True
+    cache: Path,
+    preset_name: str,
+    seed: int,
+    workers: int | None = None,
+    progress: bool = True,
+    executor: Executor | None = None,
 ) -> tuple[Path, bool]:
-    """The cached dataset of a preset and seed, generated into `cache` first if absent or corrupt.
+    """The cached dataset of a preset and seed, generated into `cache` first if absent or corrupt (its
+    episodes built by `executor`, default local processes).
 
     Returns (dataset folder, whether it was reused). A corrupt entry is moved aside, removed and generated
     again; the reason is printed.
@@ -101,7 +108,7 @@ def cached_dataset(
             shutil.rmtree(trash, ignore_errors=True)
     entry.parent.mkdir(parents=True, exist_ok=True)
     try:
-        generate(preset_name, seed, entry, workers=workers, progress=progress)
+        generate(preset_name, seed, entry, workers=workers, progress=progress, executor=executor)
     except OSError:
         if not entry.exists():  # another process did not just create it: a real error
             raise

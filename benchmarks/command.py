@@ -14,6 +14,9 @@ DEVICES: tuple[str, ...] = ("cpu", "cuda", "auto")
 """`--device` choices; the same as `benchmarks.methods.registry.DEVICES` (kept here so that building the
 parser does not import the registry and torch; a test checks that they agree)."""
 
+EXECUTORS: tuple[str, ...] = ("local", "ray")
+"""`--executor` choices; the same as `benchmarks.executor.EXECUTORS` (a test checks that they agree)."""
+
 
 @dataclass(frozen=True)
 class Command:
@@ -45,4 +48,28 @@ def add_device_argument(p: argparse.ArgumentParser) -> None:
         choices=DEVICES,
         default="cpu",
         help="where the torch methods train and score (auto: CUDA when available); others ignore it",
+    )
+
+
+def add_executor_arguments(p: argparse.ArgumentParser, what: str = "the episodes are built") -> None:
+    """`--executor`, `--address` and `--workers`: where the independent tasks run (`what`: which they are)."""
+    p.add_argument(
+        "--executor",
+        choices=EXECUTORS,
+        default="local",
+        help=f"where {what}: local worker processes, or Ray (pip install 'msvdd-bench[ray]'); the same "
+        "preset and seed give the same dataset checksums with either",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="with --executor ray: HOST:PORT of a running Ray cluster's head, or auto (default: RAY_ADDRESS, "
+        "else a Ray started on this machine); its nodes must share the output folder's file system",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="worker processes (default: one per CPU); with --executor ray and no --address, the CPUs of the "
+        "Ray started here",
     )

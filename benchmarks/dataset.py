@@ -10,14 +10,12 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import hashlib
 import json
-import multiprocessing
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -35,11 +33,12 @@ from benchmarks.episode import (
     write_episode,
 )
 from benchmarks.errors import InputNotFoundError, OutputExistsError, UserError, check_seed
+from benchmarks.executor import Executor, LocalExecutor, publish_dir
 from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
 from sim import vocab
-from sim.random_scenarios import SETTLE_S
+from sim.random_scenarios import OBSTACLE_ENVIRONMENTS, SETTLE_S, scale_speeds
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
 DATASET_FORMAT_VERSION = 2
@@ -102,6 +101,10 @@ class EpisodeSpec:
     """Benign transient density multiplier."""
     surface: str | None = None
     """Floor surface (None: drawn by the scenario sampler)."""
+    drive_speed_scale: float = 1.0
+    """Factor on the cruise speeds (`sim.random_scenarios.scale_speeds`)."""
+    approach_speed_scale: float = 1.0
+    """Factor on the speeds of the legs driven at an obstacle."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,8 @@ class WindowRow:
 
 
 def _episode_seed(dataset_seed: int, index: int) -> int:
+    """An episode's seed: from the dataset seed and the episode's index in the plan only (never from the
+    process or machine that builds it)."""
     return int(np.random.SeedSequence([dataset_seed, index]).generate_state(1, dtype=np.uint32)[0])
 
 
@@ -141,6 +146,44 @@ def nominal_floors() -> list[tuple[str, str]]:
         pairs += [("indoor", indoor[i])] if i < len(indoor) else []
         pairs += [("outdoor", outdoor_only[i])] if i < len(outdoor_only) else []
     return pairs + [("outdoor", f) for f in vocab.OUTDOOR_SURFACES if f in indoor]
+
+
+def split_floors(preset: Preset, side: str) -> list[tuple[str, str]] | None:
+    """The (environment, surface) pairs episodes of `side` (`train` or `test`) may take, in
+    `nominal_floors` order; None when the preset does not restrict them (the sampler draws freely)."""
+    environments = getattr(preset, f"{side}_environments")
+    surfaces = getattr(preset, f"{side}_surfaces")
+    if not environments and not surfaces:
+        return None
+    floors = [
+        (env, surface)
+        for env, surface in nominal_floors()
+        if (not environments or env in environments) and (not surfaces or surface in surfaces)
+    ]
+    if not floors:
+        raise UserError(
+            f"preset {preset.name!r}: no floor is in both {side}_environments {list(environments)} and "
+            f"{side}_surfaces {list(surfaces)}; indoor surfaces: {', '.join(vocab.INDOOR_SURFACES)}, "
+            f"outdoor: {', '.join(vocab.OUTDOOR_SURFACES)}"
+        )
+    return floors
+
+
+def _anomaly_floor(
+    floors: list[tuple[str, str]] | None, obstacle_kind: str | None, count: int, preset: Preset
+) -> dict[str, str | None]:
+    """The environment and surface of the `count`-th test anomaly episode (None each: drawn freely)."""
+    if floors is None:
+        return {"environment": None, "surface": None}
+    where = OBSTACLE_ENVIRONMENTS.get(obstacle_kind or "", vocab.ENVIRONMENTS)
+    usable = [f for f in floors if f[0] in where]
+    if not usable:
+        raise UserError(
+            f"preset {preset.name!r}: obstacle kind {obstacle_kind!r} stands only {' or '.join(where)}, "
+            f"outside every test floor {floors}"
+        )
+    env, surface = usable[count % len(usable)]
+    return {"environment": env, "surface": surface}
 
 
 def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
@@ -167,6 +210,8 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
                 severity=preset.severity,
                 transient_density=preset.transient_density,
                 surface=kw.get("surface"),  # type: ignore[arg-type]
+                drive_speed_scale=preset.drive_speed_scale,
+                approach_speed_scale=preset.approach_speed_scale,
             )
         )
 
@@ -174,24 +219,32 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
     # (one surface per sequence: drawn at random, six test sequences left test normals on three). Units
     # cycle with the episode index and SNR and arena are drawn per episode, so many short test sequences
     # cover floors x SNR x unit x arena.
-    floors = nominal_floors()
+    # A preset that restricts the training or test floors (a domain-shift sweep) takes only those, and its
+    # anomaly episodes take the test floors in turn too.
+    train_floors, test_floors = split_floors(preset, "train"), split_floors(preset, "test")
+    floors = {"train": train_floors or nominal_floors(), "test": test_floors or nominal_floors()}
     train_s, test_s = preset.nominal_train_duration_s, preset.nominal_test_duration_s
     for i in range(preset.nominal_train):
         split = "val" if i >= preset.nominal_train - preset.nominal_val else "train"
-        env, floor = floors[i % len(floors)]
+        env, floor = floors["train"][i % len(floors["train"])]
         add("nominal", split, preset.train_units, train_s, environment=env, surface=floor)
     for i in range(preset.nominal_test):
-        env, floor = floors[i % len(floors)]
+        env, floor = floors["test"][i % len(floors["test"])]
         add("nominal", "test", preset.test_units, test_s, environment=env, surface=floor)
+    anomalies = 0
     for kind in preset.obstacle_kinds:
         for _ in range(preset.collisions_per_kind):
-            add("collision", "test", preset.test_units, preset.collision_duration_s, obstacle_kind=kind)
+            where = _anomaly_floor(test_floors, kind, anomalies, preset)
+            anomalies += 1
+            duration = preset.collision_duration_s
+            add("collision", "test", preset.test_units, duration, obstacle_kind=kind, **where)
     for fault in preset.fault_kinds:
         for wheel in preset.wheels:
             for _ in range(preset.faults_per_kind_wheel):
-                add(
-                    "fault", "test", preset.test_units, preset.fault_duration_s, fault_kind=fault, wheel=wheel
-                )
+                where = _anomaly_floor(test_floors, None, anomalies, preset)
+                anomalies += 1
+                duration = preset.fault_duration_s
+                add("fault", "test", preset.test_units, duration, fault_kind=fault, wheel=wheel, **where)
     return specs
 
 
@@ -201,7 +254,11 @@ def episode_audio_config(spec: EpisodeSpec, muted: tuple[str, ...] = ()) -> synt
 
 
 def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
-    """Simulate, render and write one episode folder (runs in a worker process)."""
+    """Simulate, render and write one episode folder (runs in a worker process); idempotent.
+
+    The folder is written beside its place and renamed into it, replacing a copy an earlier attempt of the
+    same task left (the same spec always gives the same bytes), so a retried task is harmless.
+    """
     scenario = sim.random_scenario(
         spec.seed,
         spec.category,
@@ -215,6 +272,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         transient_density=spec.transient_density,
         surface=spec.surface,
     )
+    scenario = scale_speeds(scenario, spec.drive_speed_scale, spec.approach_speed_scale)
     trace = sim.simulate(scenario)
     audio = synth_audio.render(trace, episode_audio_config(spec), seed=spec.seed)
     meta = EpisodeMeta(
@@ -226,7 +284,17 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         snr_db=spec.snr_db,
         duration_s=spec.duration_s,
     )
-    return write_episode(directory / spec.episode_id, meta, scenario.to_dict(), trace, audio)
+    directory = Path(directory)
+    staging = Path(tempfile.mkdtemp(prefix=f"{_STAGING}{spec.episode_id}-", dir=directory))
+    try:
+        written = write_episode(staging / spec.episode_id, meta, scenario.to_dict(), trace, audio)
+        return publish_dir(written, directory / spec.episode_id)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+_STAGING = ".staging-"
+"""Prefix of the folder an episode is written into before it is renamed into the dataset."""
 
 
 def label_windows(
@@ -322,30 +390,48 @@ def sha256_file(path: Path) -> str:
 
 
 def generate(
-    preset_name: str, seed: int, out: Path, workers: int | None = None, progress: bool = True
+    preset: str | Preset,
+    seed: int,
+    out: Path,
+    workers: int | None = None,
+    progress: bool = True,
+    executor: Executor | None = None,
 ) -> Path:
     """Generate a whole dataset into `out` (which must not exist), atomically.
 
     Args:
-        preset_name: a preset from `benchmarks.presets`.
-        seed: dataset seed; the same preset and seed give the same file checksums.
+        preset: a preset name from `benchmarks.presets`, or a Preset (one derived by a sweep).
+        seed: dataset seed; the same preset and seed give the same file checksums, with any executor.
         out: target folder.
-        workers: worker processes (default: one per CPU); 1 runs in this process.
+        workers: worker processes of the default local executor (default: one per CPU); 1 runs in this
+            process. Not with `executor`.
         progress: show a progress bar.
+        executor: where the episodes are built (default: `LocalExecutor(workers)`); a Ray cluster of
+            several machines needs `out` on a file system they all mount at the same path.
     """
-    preset = get_preset(preset_name)
+    preset = get_preset(preset) if isinstance(preset, str) else preset
     seed = check_seed(seed)
     out = Path(out)
     if out.exists():
         raise OutputExistsError(f"dataset folder exists already: {out} (remove it or choose another --out)")
     if workers is not None and workers < 1:
         raise UserError(f"--workers = {workers} is invalid; allowed: an integer >= 1")
+    if executor is not None and workers is not None:
+        raise UserError("--workers applies to the local executor only; give it to the executor instead")
     specs = plan_episodes(preset, seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
-        for _ in _build_all(specs, tmp, workers or os.cpu_count() or 1, progress):
-            pass
+        run = executor if executor is not None else LocalExecutor(workers)
+        build = functools.partial(build_episode, directory=tmp)
+        for path in run.map(build, specs, desc="episodes", progress=progress):
+            if not Path(path).is_dir():
+                raise DatasetError(
+                    f"{path}: written by a worker but not visible here; with a Ray cluster of several "
+                    "machines, --out must be on a file system every node mounts at the same path"
+                )
+        for leftover in tmp.glob(f"{_STAGING}*"):  # from attempts of a retried task that were killed
+            shutil.rmtree(leftover, ignore_errors=True)
         rows, dropped = _window_rows(tmp, preset, specs)
         if dropped and progress:
             print(
@@ -378,29 +464,6 @@ def generate(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
-
-
-def _build_all(specs: list[EpisodeSpec], directory: Path, workers: int, progress: bool) -> Iterator[Path]:
-    bar = tqdm(total=len(specs), desc="episodes", unit="ep", disable=not progress)
-    try:
-        if workers == 1:
-            for spec in specs:
-                yield build_episode(spec, directory)
-                bar.update()
-            return
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            futures: list[Future[Path]] = [pool.submit(build_episode, spec, directory) for spec in specs]
-            try:
-                for future in as_completed(futures):
-                    yield future.result()
-                    bar.update()
-            except BaseException:
-                for future in futures:
-                    future.cancel()
-                raise
-    finally:
-        bar.close()
 
 
 def _write_windows_csv(path: Path, rows: list[WindowRow]) -> None:

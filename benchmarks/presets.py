@@ -6,7 +6,8 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from benchmarks.errors import UserError
-from sim.vocab import FAULT_KINDS, OBSTACLE_KINDS
+from sim.random_scenarios import SPEED_SCALE_RANGE
+from sim.vocab import ENVIRONMENTS, FAULT_KINDS, OBSTACLE_KINDS, SURFACES
 
 
 @dataclass(frozen=True)
@@ -61,14 +62,45 @@ class Preset:
     """Obstacle kinds generated."""
     wheels: tuple[int, ...] = (0, 1, 2, 3)
     """Wheels faults are injected on."""
+    drive_speed_scale: float = 1.0
+    """Factor on every cruise speed (`sim.random_scenarios.scale_speeds`; 1 = as drawn)."""
+    approach_speed_scale: float = 1.0
+    """Factor on the speed of legs driven at an obstacle: collision hits and near misses (1 = as drawn)."""
+    train_environments: tuple[str, ...] = ()
+    """Environments of training (and validation) sequences (empty = every one)."""
+    test_environments: tuple[str, ...] = ()
+    """Environments of test episodes (empty = every one; outside `train_environments`: unseen)."""
+    train_surfaces: tuple[str, ...] = ()
+    """Floor surfaces of training (and validation) sequences (empty = every one)."""
+    test_surfaces: tuple[str, ...] = ()
+    """Floor surfaces of test episodes (empty = every one; outside `train_surfaces`: unseen)."""
 
     def __post_init__(self) -> None:
-        """Refuse an SNR range that is not (low, high) with low <= high."""
+        """Refuse an SNR range that is not (low, high) with low <= high, unknown floors, and speed factors
+        out of range."""
         if len(self.snr_db) != 2 or not self.snr_db[0] <= self.snr_db[1]:
             raise UserError(
                 f"preset {self.name!r}: snr_db must be a (low, high) range in dB with low <= high, "
                 f"got {self.snr_db}"
             )
+        for name, allowed in (
+            ("train_environments", ENVIRONMENTS),
+            ("test_environments", ENVIRONMENTS),
+            ("train_surfaces", SURFACES),
+            ("test_surfaces", SURFACES),
+        ):
+            for value in getattr(self, name):
+                if value not in allowed:
+                    raise UserError(
+                        f"preset {self.name!r}: {name} has {value!r}; allowed: {', '.join(allowed)}"
+                    )
+        low, high = SPEED_SCALE_RANGE
+        for name in ("drive_speed_scale", "approach_speed_scale"):
+            value = getattr(self, name)
+            if not low <= value <= high:
+                raise UserError(
+                    f"preset {self.name!r}: {name} = {value!r} is invalid; allowed: {low} to {high}"
+                )
 
 
 QUICK_METHODS: tuple[str, ...] = (

@@ -15,9 +15,10 @@ from benchmarks import methods
 from benchmarks.cache import cached_dataset
 from benchmarks.dataset import check_dev, generate, open_dataset
 from benchmarks.errors import OutputExistsError, UserError, check_seed
+from benchmarks.executor import Executor
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
-from benchmarks.presets import expand_methods, get_preset
+from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
 from benchmarks.report import RunInfo, write_report
 
 DEFAULT_PRESET = "quick"
@@ -39,6 +40,8 @@ def run_benchmark(
     dev: Path | None = None,
     cache: Path | None = None,
     device: str = "cpu",
+    executor: Executor | None = None,
+    preset: Preset | None = None,
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
@@ -48,31 +51,43 @@ def run_benchmark(
     preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
     without, they default to `DEFAULT_PRESET` and 0. With `cache` (not with `data`), the dataset is taken
     from that cache folder, generated there first if needed (`benchmarks.cache`). `device` is where the
-    torch methods train and score; `progress` shows every bar, training ones included. Returns `out`.
+    torch methods train and score; `progress` shows every bar, training ones included. `executor` builds
+    the episodes of a generated dataset (default: local processes, `workers` of them). `preset`, instead of
+    `preset_name`, is a preset that is not registered (a sweep point's; not with `data` or `cache`).
+    Returns `out`.
     """
     out = Path(out)
     if out.exists():
         raise OutputExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
     if data is not None and cache is not None:
         raise UserError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
+    if preset is not None and (preset_name is not None or data is not None or cache is not None):
+        raise UserError("a preset object excludes a preset name, --data and --cache")
     if data is not None:
         preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
-    preset_name = preset_name or DEFAULT_PRESET
+        if preset_name not in preset_names():  # a derived preset (a sweep point's): the manifest's
+            preset = open_dataset(Path(data), verify=False).preset
+    if preset is None:
+        preset = get_preset(preset_name or DEFAULT_PRESET)
+    preset_name = preset.name
     seed = 0 if seed is None else check_seed(seed)
-    preset = get_preset(preset_name)
     names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
     for name in names:
         methods.spec(name)
     chosen_scale = check_scale(scale or preset.method_scale)
     train_seeds = seeds if seeds else list(preset.seeds)
     if cache is not None:
-        data, reused = cached_dataset(Path(cache), preset_name, seed, workers=workers, progress=progress)
+        data, reused = cached_dataset(
+            Path(cache), preset_name, seed, workers=workers, progress=progress, executor=executor
+        )
         print(f"{'reusing' if reused else 'generated'} cached dataset {data}", flush=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
         if data is None:
-            data_path = generate(preset_name, seed, tmp / "dataset", workers=workers, progress=progress)
+            data_path = generate(
+                preset, seed, tmp / "dataset", workers=workers, progress=progress, executor=executor
+            )
         else:
             data_path = Path(data)
         # a cache entry was verified just now

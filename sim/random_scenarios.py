@@ -9,6 +9,7 @@ laid across the route's legs so that nominal driving meets them.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from sim import vocab
 from sim.scenario import (
+    MAX_WHEEL_SPEED,
     OBSTACLE_SIZES,
     Fault,
     Obstacle,
@@ -775,3 +777,36 @@ def scenario_presets() -> dict[str, Callable[[int], Scenario]]:
     for kind in vocab.FAULT_KINDS:
         presets[f"fault_{kind}"] = make(f"fault_{kind}", "fault", fault_kind=kind)
     return presets
+
+
+SPEED_SCALE_RANGE: tuple[float, float] = (0.5, 2.0)
+"""Allowed factors of `scale_speeds` (slower than half speed, a collision episode may end before its hit)."""
+
+
+def scale_speeds(scenario: Scenario, drive: float = 1.0, approach: float = 1.0) -> Scenario:
+    """The scenario with its cruise speeds times `drive` and its obstacle legs' speeds times `approach`.
+
+    `drive` scales every forward leg that does not drive at an obstacle; `approach` scales the legs that do
+    (a collision episode's hit and every near miss). Speeds are capped at `MAX_WHEEL_SPEED`; back-out legs
+    and the reflex keep their speeds. A near miss keeps its margin: its safety stop distance is planned
+    again for the new speed (braking at `BRAKE_DECEL`, as `random_scenario` plans it). Factors of 1 return
+    the scenario unchanged (the same object).
+    """
+    low, high = SPEED_SCALE_RANGE
+    for name, factor in (("drive", drive), ("approach", approach)):
+        if not low <= factor <= high:
+            raise ScenarioError(f"{name} speed factor = {factor!r} is invalid; allowed: {low} to {high}")
+    if drive == 1.0 and approach == 1.0:
+        return scenario
+
+    def scaled(w: Waypoint) -> Waypoint:
+        if w.reverse:
+            return w
+        speed = min(w.speed * (approach if w.ram >= 0 else drive), MAX_WHEEL_SPEED)
+        stop_short = w.stop_short
+        if w.stop_short > 0:
+            stop_short = w.stop_short + (speed**2 - w.speed**2) / (2.0 * BRAKE_DECEL)
+        return dataclasses.replace(w, speed=speed, stop_short=stop_short)
+
+    route = dataclasses.replace(scenario.route, waypoints=tuple(scaled(w) for w in scenario.route.waypoints))
+    return dataclasses.replace(scenario, route=route)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 from pathlib import Path
 
-from benchmarks.command import Command, add_progress_argument
+from benchmarks.command import Command, add_executor_arguments, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -19,22 +20,24 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="cache folder: generate into DIR/<preset>-seed<seed>-<key> unless a verified copy is there; "
         "prints the dataset folder's absolute path on the last line",
     )
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
+    add_executor_arguments(p)
     add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
     from benchmarks.cache import cached_dataset
     from benchmarks.dataset import generate, open_dataset
+    from benchmarks.executor import make_executor
 
     progress = not args.no_progress
-    if args.cache is not None:
-        path, reused = cached_dataset(args.cache, args.preset, args.seed, args.workers, progress)
-        if reused:
-            print(f"reusing cached dataset (verified)\n{path.absolute()}")
-            return 0
-    else:
-        path = generate(args.preset, args.seed, args.out, workers=args.workers, progress=progress)
+    with contextlib.closing(make_executor(args.executor, workers=args.workers, address=args.address)) as ex:
+        if args.cache is not None:
+            path, reused = cached_dataset(args.cache, args.preset, args.seed, progress=progress, executor=ex)
+            if reused:
+                print(f"reusing cached dataset (verified)\n{path.absolute()}")
+                return 0
+        else:
+            path = generate(args.preset, args.seed, args.out, progress=progress, executor=ex)
     dataset = open_dataset(path, verify=False)
     counts: dict[tuple[str, str], int] = {}
     for row in dataset.windows:
@@ -53,5 +56,8 @@ COMMAND = Command(
     help="simulate and render a dataset (episodes, windows.csv, manifest.json) from a preset",
     add_arguments=_add_arguments,
     run=_run,
-    example="msvdd-bench generate --preset quick --seed 0 --out runs/quick-seed0",
+    example=(
+        "msvdd-bench generate --preset quick --seed 0 --out runs/quick-seed0\n"
+        "msvdd-bench generate --preset paper --seed 1 --out /shared/paper-dev --executor ray --address auto"
+    ),
 )

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
-from benchmarks.command import Command, add_device_argument, add_progress_argument
+from benchmarks.command import Command, add_device_argument, add_executor_arguments, add_progress_argument
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,9 +43,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         help="the dev dataset (same preset, another seed) every choice of the methods was made on; "
         "recorded in the report",
     )
-    p.add_argument(
-        "--workers", type=int, default=None, help="generation worker processes (default: one per CPU)"
-    )
+    add_executor_arguments(p, what="the episodes of a generated dataset are built")
     p.add_argument(
         "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
     )
@@ -57,23 +56,26 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_from_args(args: argparse.Namespace) -> Path:
     """Run the benchmark as the parsed options say."""
+    from benchmarks.executor import make_executor
     from benchmarks.runner import run_benchmark
 
-    return run_benchmark(
-        args.out,
-        preset_name=args.preset,
-        seed=args.seed,
-        method_names=args.methods,
-        data=args.data,
-        workers=args.workers,
-        scale=args.scale,
-        seeds=args.seeds,
-        command="msvdd-bench " + " ".join(sys.argv[1:]),
-        progress=not args.no_progress,
-        dev=args.dev,
-        cache=args.cache,
-        device=args.device,
-    )
+    with contextlib.closing(make_executor(args.executor, workers=args.workers, address=args.address)) as ex:
+        return run_benchmark(
+            args.out,
+            preset_name=args.preset,
+            seed=args.seed,
+            method_names=args.methods,
+            data=args.data,
+            workers=None,
+            scale=args.scale,
+            seeds=args.seeds,
+            command="msvdd-bench " + " ".join(sys.argv[1:]),
+            progress=not args.no_progress,
+            dev=args.dev,
+            cache=args.cache,
+            device=args.device,
+            executor=ex,
+        )
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -20,7 +20,12 @@ def fake_generate(tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch) -> list[P
     calls: list[Path] = []
 
     def generate(
-        preset: str, seed: int, out: Path, workers: int | None = None, progress: bool = True
+        preset: str,
+        seed: int,
+        out: Path,
+        workers: int | None = None,
+        progress: bool = True,
+        executor: object = None,
     ) -> Path:
         assert (preset, seed) == ("tiny", 0)
         calls.append(Path(out))

@@ -1,0 +1,221 @@
+"""A sweep's outputs: `sweep.json`, `sweep.md` and one PNG curve per AUC, each written atomically.
+
+Every cell is a seed-mean AUC with its 95 % episode-cluster bootstrap interval (`benchmarks.uncertainty`,
+computed by each point's run). A plot has one line per method with the intervals as error bars; with several
+dataset seeds the line is the mean over them and the bar spans the lowest to the highest end of their
+intervals (an envelope, said so in the legend).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from benchmarks.sweeps.run import AUC_KEYS, PointResult, SweepResult
+from benchmarks.uncertainty import CONFIDENCE, Interval
+
+AUC_TITLES: dict[str, str] = {
+    "auc": "AUC, every anomaly against normal",
+    "auc_collision": "AUC, collisions against normal",
+    "auc_mechanical": "AUC, mechanical faults against normal",
+}
+"""Heading of each AUC's table and plot."""
+
+
+def write_outputs(result: SweepResult) -> list[Path]:
+    """Write `sweep.json`, `sweep.md` and `figures/<auc key>.png` into the sweep folder; their paths."""
+    out = result.out
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    written = [
+        _atomic(out / "sweep.json", lambda p: p.write_text(json.dumps(to_json(result), indent=2) + "\n")),
+    ]
+    for key in AUC_KEYS:
+        written.append(_atomic(out / "figures" / f"{key}.png", functools.partial(plot, result, key)))
+    written.append(_atomic(out / "sweep.md", lambda p: p.write_text(markdown(result))))
+    return written
+
+
+def _atomic(path: Path, write: Callable[[Path], object]) -> Path:
+    """Write through a temporary sibling (same suffix) renamed onto `path`."""
+    fd, name = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _methods(result: SweepResult) -> list[str]:
+    found: list[str] = []
+    for r in result.results:
+        found += [m for m in r.methods if m not in found]
+    return found
+
+
+def _by_point(result: SweepResult) -> dict[int, list[PointResult]]:
+    groups: dict[int, list[PointResult]] = {}
+    for r in result.results:
+        groups.setdefault(r.point, []).append(r)
+    return groups
+
+
+def combined(runs: list[PointResult], method: str, key: str) -> Interval:
+    """One point's AUC over its dataset seeds: the interval itself for one seed; for several, the mean
+    value and the envelope (lowest low, highest high) of their intervals."""
+    ivs = [r.methods[method].auc[key] for r in runs if method in r.methods]
+    if not ivs:
+        return Interval(math.nan, math.nan, math.nan)
+    if len(ivs) == 1:
+        return ivs[0]
+    lows = [iv.low for iv in ivs if math.isfinite(iv.low)]
+    highs = [iv.high for iv in ivs if math.isfinite(iv.high)]
+    value = float(sum(iv.value for iv in ivs) / len(ivs))
+    return Interval(value, min(lows) if lows else math.nan, max(highs) if highs else math.nan)
+
+
+def _cell(iv: Interval) -> str:
+    if not math.isfinite(iv.value):
+        return "n/a"
+    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
+        return f"{100 * iv.value:.1f} [n/a]"
+    return f"{100 * iv.value:.1f} [{100 * iv.low:.1f}, {100 * iv.high:.1f}]"
+
+
+def markdown(result: SweepResult) -> str:
+    """`sweep.md`: the setting, then one table per AUC (rows: point and dataset seed; columns: methods)."""
+    spec, axis = result.spec, result.spec.axis
+    names = _methods(result)
+    label = {p.index: p.label for p in result.points}
+    overrides = ", ".join(f"{k} = {v!r}" for k, v in spec.overrides) or "none"
+    episodes = sorted({(r.normal_episodes, r.anomalous_episodes) for r in result.results})
+    lines = [
+        f"# Sweep: {spec.title}",
+        "",
+        f"- Axis: `{axis.name}` ({axis.label}); base preset `{spec.base}`; overrides: {overrides}.",
+        f"- Dataset seeds: {', '.join(map(str, spec.seeds))}; methods: {', '.join(names)}.",
+        f"- Command: `{result.command}`",
+        f"- Executor: {result.executor}; wall time {result.seconds:.0f} s; {result.machine}; {result.date}.",
+        f"- Cells: AUC (%) with its {100 * CONFIDENCE:.0f} % episode-cluster bootstrap interval, "
+        "`84.0 [81.2, 86.5]` (whole test episodes resampled, normal and anomalous separately: "
+        + "; ".join(f"{n} normal and {a} anomalous episodes" for n, a in episodes)
+        + "); `[n/a]`: too few episodes for an interval.",
+        "- Each point is a complete run folder (`points/pNN-seedS/`: dataset, models, results.md); its "
+        "dataset comes from the preset recorded in `sweep.json`, so any point can be generated again alone.",
+    ]
+    for key in AUC_KEYS:
+        lines += ["", f"## {AUC_TITLES[key]}", "", f"![{key}](figures/{key}.png)", ""]
+        lines += [
+            "| " + " | ".join([axis.name, "dataset seed", *names]) + " |",
+            "| " + " | ".join(["---"] * (2 + len(names))) + " |",
+        ]
+        for r in result.results:
+            cells = [_cell(r.methods[m].auc[key]) if m in r.methods else "" for m in names]
+            lines.append("| " + " | ".join([label[r.point], str(r.seed), *cells]) + " |")
+    lines += [
+        "",
+        "## Points",
+        "",
+        "| point | preset | folder | dataset sha256 |",
+        "| --- | --- | --- | --- |",
+    ]
+    for r in result.results:
+        point = result.points[r.point]
+        folder = os.path.relpath(r.folder, result.out.absolute())
+        lines.append(f"| {point.label} | `{point.preset.name}` | `{folder}` | `{r.dataset_sha256[:16]}` |")
+    return "\n".join(lines) + "\n"
+
+
+def to_json(result: SweepResult) -> dict[str, Any]:
+    """`sweep.json`: the spec, the setting, and every point's AUCs with intervals, per dataset seed."""
+    spec = result.spec
+    root = result.out.absolute()
+    return {
+        "title": spec.title,
+        "spec": spec.to_dict(),
+        "axis": {"name": spec.axis.name, "field": spec.axis.field, "label": spec.axis.label},
+        "command": result.command,
+        "executor": result.executor,
+        "seconds": result.seconds,
+        "machine": result.machine,
+        "date": result.date,
+        "uncertainty": f"AUC with its {100 * CONFIDENCE:.0f} % episode-cluster bootstrap interval "
+        "(benchmarks.uncertainty), from each point's results.json",
+        "points": [
+            {
+                "index": p.index,
+                "label": p.label,
+                "x": p.x,
+                "value": list(p.value) if isinstance(p.value, tuple) else p.value,
+                "preset": dataclasses.asdict(p.preset),
+                "runs": [
+                    {
+                        "seed": r.seed,
+                        "folder": os.path.relpath(r.folder, root),
+                        "dataset_sha256": r.dataset_sha256,
+                        "normal_episodes": r.normal_episodes,
+                        "anomalous_episodes": r.anomalous_episodes,
+                        "methods": {
+                            name: {
+                                **{key: m.auc[key].to_dict() for key in AUC_KEYS},
+                                "train_seconds": m.train_seconds,
+                            }
+                            for name, m in r.methods.items()
+                        },
+                    }
+                    for r in result.results
+                    if r.point == p.index
+                ],
+            }
+            for p in result.points
+        ],
+    }
+
+
+def plot(result: SweepResult, key: str, path: Path) -> None:
+    """One PNG: the AUC `key` against the axis, one line per method, intervals as error bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    spec, axis = result.spec, result.spec.axis
+    groups = _by_point(result)
+    points = [p for p in result.points if p.index in groups]
+    several = len(spec.seeds) > 1
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=110)
+    try:
+        names = _methods(result)
+        width = (max(p.x for p in points) - min(p.x for p in points)) or 1.0
+        for i, name in enumerate(names):
+            ivs = [combined(groups[p.index], name, key) for p in points]
+            shift = (i - (len(names) - 1) / 2) * 0.012 * width  # keep overlapping bars apart
+            xs = [p.x + shift for p in points]
+            ys = [100 * iv.value for iv in ivs]
+            low = [100 * (iv.value - iv.low) if math.isfinite(iv.low) else 0.0 for iv in ivs]
+            high = [100 * (iv.high - iv.value) if math.isfinite(iv.high) else 0.0 for iv in ivs]
+            ax.errorbar(xs, ys, yerr=[low, high], marker="o", capsize=3, label=name)
+        ax.axhline(50.0, color="0.6", linestyle="--", linewidth=1, label="chance")
+        ax.set_ylim(0, 102)
+        ax.set_ylabel("AUC (%)")
+        ax.set_xlabel(axis.label)
+        if not axis.numeric:
+            ax.set_xticks([p.x for p in points], [p.label for p in points])
+        band = "envelope of the per-seed 95 % intervals" if several else "95 % episode-bootstrap interval"
+        ax.set_title(f"{spec.title}: {AUC_TITLES[key]}\nbars: {band}", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower left")
+        fig.tight_layout()
+        fig.savefig(path, format="png")
+    finally:
+        plt.close(fig)

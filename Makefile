@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 BENCH := $(VENV)/bin/msvdd-bench
 STAMP := $(VENV)/.installed
 
-.PHONY: venv test lint demo bench ablations perf clean
+.PHONY: venv test lint demo bench ablations perf viewer-shots clean
 
 venv: $(STAMP)
 
@@ -45,6 +45,17 @@ ablations: $(STAMP)
 
 perf: $(STAMP)
 	$(BENCH) perf --stage all --json runs/perf.json
+
+# Screenshots of the Rerun web viewer (headless Chromium, software rendering) of a collision and a fault
+# episode of `make demo`'s run, at 1440x900 and 1920x1080, into assets/screenshots/. Needs Chromium
+# (`apt-get install chromium`); one browser at a time, about a minute a shot. Not part of `make test` or CI.
+SHOTS_DATA ?= runs/demo/dataset
+SHOTS_MODEL ?= runs/demo/models/msvdd-seed0
+SHOTS_EPISODES ?= test-collision-001 test-fault-000
+viewer-shots: $(STAMP)
+	@test -d $(SHOTS_DATA) || { echo "no dataset at $(SHOTS_DATA): run make demo first"; exit 2; }
+	$(PY) -m benchmarks.viz.shots --data $(SHOTS_DATA) --model $(SHOTS_MODEL) \
+		$(foreach e,$(SHOTS_EPISODES),--episode $(e)) --out assets/screenshots
 
 clean:
 	rm -rf runs build *.egg-info

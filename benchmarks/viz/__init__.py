@@ -1,8 +1,12 @@
 """Rerun visualisation of one episode: the robot in its arena, what it heard and felt, the detector's scores.
 
 from benchmarks.viz import log_episode
-log_episode("runs/demo/dataset", "test-collision-000", model_dir="runs/demo/models/msvdd-seed0",
+log_episode("runs/demo/dataset", "test-collision-001", model_dir="runs/demo/models/msvdd-seed0",
             save="collision.rrd")   # then: rerun collision.rrd
+# without a display: rerun --serve-web --bind 127.0.0.1 collision.rrd (or `msvdd-bench viz --serve-web`)
+
+The recording's blueprint (`blueprint.py`) opens paused with the first anomaly selected, every plot on one
+time axis, and the 3D view following the robot; `shots.py` photographs it in headless Chromium.
 """
 
 from benchmarks.viz.blueprint import build_blueprint

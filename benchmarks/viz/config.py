@@ -40,6 +40,9 @@ class VizConfig:
     """Height of the drawn robot body box, m (the trace does not carry body dimensions)."""
     wheel_width_m: float = 0.05
     """Width of the drawn wheels, m."""
+    follow_radius_m: float = 1.75
+    """Radius of the ring around the robot that the 3D view follows; the camera stays about 2.1 times this
+    away from the robot, m."""
 
     def __post_init__(self) -> None:
         for name in ("pose_rate_hz", "envelope_rate_hz", "spectrogram_hop_s", "cursor_rate_hz"):

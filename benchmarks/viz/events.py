@@ -36,24 +36,24 @@ def trace_events(trace: Trace) -> list[TextEvent]:
             TextEvent(
                 float(c.time[i]),
                 "WARN",
-                f"collision with {c.obstacle_kind[i]} ({c.material[i]}): impulse {c.impulse[i]:.3g} N s, "
-                f"normal speed {c.normal_speed[i]:.3g} m/s, lasting {c.duration[i]:.3g} s",
+                f"collision: {c.obstacle_kind[i]} ({c.material[i]}), {c.impulse[i]:.3g} N s at "
+                f"{c.normal_speed[i]:.2g} m/s, {c.duration[i]:.2g} s long",
             )
         )
     t = trace.transients
     for i in range(len(t.time)):
         wheel = trace.robot.wheel_names[int(t.wheel[i])] if 0 <= int(t.wheel[i]) < trace.n_wheels else "?"
         out.append(
-            TextEvent(float(t.time[i]), "DEBUG", f"benign {t.kind[i]} under {wheel}: {t.impulse[i]:.3g} N s")
+            TextEvent(float(t.time[i]), "DEBUG", f"benign {t.kind[i]} under {wheel} ({t.impulse[i]:.3g} N s)")
         )
     for f in trace.faults:
         wheel = trace.robot.wheel_names[f.wheel] if 0 <= f.wheel < trace.n_wheels else str(f.wheel)
         out.append(
             TextEvent(
-                float(f.onset), "ERROR", f"fault {f.kind} on {wheel} starts (severity {f.severity:.2f})"
+                float(f.onset), "ERROR", f"fault starts: {f.kind} on {wheel}, severity {f.severity:.2f}"
             )
         )
-        out.append(TextEvent(float(f.onset + f.duration), "INFO", f"fault {f.kind} on {wheel} ends"))
+        out.append(TextEvent(float(f.onset + f.duration), "INFO", f"fault ends: {f.kind} on {wheel}"))
     return out
 
 
@@ -65,13 +65,19 @@ def detection_events(scores: EpisodeScores) -> list[TextEvent]:
     for i in np.flatnonzero(change):
         if change[i] > 0:
             text = (
-                f"{scores.method} detects an anomaly: score {scores.score[i]:.4g} > threshold "
-                f"{scores.threshold:.4g} (window {scores.start_s[i]:.2f}-{scores.end_s[i]:.2f} s)"
+                f"{scores.method} alarm: score {scores.score[i]:.4g} > threshold {scores.threshold:.4g} "
+                f"(window {scores.start_s[i]:.2f}-{scores.end_s[i]:.2f} s)"
             )
             out.append(TextEvent(float(scores.end_s[i]), "WARN", text))
         else:
             out.append(TextEvent(float(scores.end_s[i]), "INFO", f"{scores.method} back below threshold"))
     return out
+
+
+def event_line(event: TextEvent) -> str:
+    """The text shown for an event: its time first (the table's own time column is hidden: too narrow to
+    read), then what happened."""
+    return f"{event.time:6.2f} s  {event.text}"
 
 
 def log_events(rec: rr.RecordingStream, events: list[TextEvent]) -> None:
@@ -82,5 +88,5 @@ def log_events(rec: rr.RecordingStream, events: list[TextEvent]) -> None:
     rec.send_columns(
         EVENTS,
         indexes=[rr.TimeColumn(TIMELINE, duration=np.array([e.time for e in ordered]))],
-        columns=rr.TextLog.columns(text=[e.text for e in ordered], level=[e.level for e in ordered]),
+        columns=rr.TextLog.columns(text=[event_line(e) for e in ordered], level=[e.level for e in ordered]),
     )

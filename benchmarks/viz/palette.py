@@ -51,12 +51,42 @@ FAULTY_WHEEL = (230, 30, 30, 255)
 """A wheel while its fault is active."""
 SPOKE = (230, 230, 230, 255)
 """The spoke that shows a wheel turning."""
+FOLLOW_RING = (150, 175, 225, 255)
+"""The faint ring around the robot that the 3D view follows."""
 TRAJECTORY = (60, 110, 200, 160)
 """The driven path."""
 CONTACT = (255, 90, 20, 255)
 """A collision marker."""
 TRANSIENT = (150, 150, 150, 200)
 """A benign transient marker."""
+QUIET = (70, 70, 70, 255)
+"""The detector's lane while it stays below the threshold."""
+NO_SCORE = (35, 35, 35, 255)
+"""The detector's lane before its first window ends."""
+IMU = (200, 140, 60, 255)
+"""The IMU z velocity line."""
+
+NAMED: tuple[tuple[str, tuple[int, int, int, int]], ...] = (
+    ("red", (235, 90, 80, 255)),
+    ("green", (90, 190, 90, 255)),
+    ("blue", (90, 150, 245, 255)),
+    ("yellow", (230, 200, 60, 255)),
+    ("purple", (180, 110, 230, 255)),
+    ("cyan", (70, 200, 210, 255)),
+)
+"""Line colours with the names the view titles use for them, in the order series get them."""
+
+
+def series_colour(i: int) -> tuple[str, tuple[int, int, int, int]]:
+    """(name, colour) of the i-th series of a multi-line plot."""
+    return NAMED[i % len(NAMED)]
+
+
+AXES: tuple[tuple[int, int, int, int], ...] = tuple(colour for _, colour in NAMED[:3])
+"""x, y, z axis lines: red, green, blue."""
+MICROPHONES: dict[str, tuple[int, int, int, int]] = {"left": NAMED[2][1], "right": NAMED[1][1]}
+"""Left microphone blue, right green."""
+
 SCORE = (40, 120, 220, 255)
 """The anomaly score line."""
 THRESHOLD = (220, 40, 40, 255)
@@ -65,3 +95,5 @@ DETECTION = (255, 60, 60, 255)
 """Detection points and the detector's alarm state."""
 CURSOR = (255, 255, 255, 255)
 """The time cursor over the spectrogram."""
+LABEL = (45, 45, 50, 255)
+"""Axis labels of the spectrograms (the viewer draws white text on the point's colour)."""

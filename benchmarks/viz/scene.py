@@ -2,8 +2,10 @@
 
 Entity layout (all under `world/`, z up, metres):
 - `world/arena/floor`, `world/arena/bounds`: static floor slab and arena outline;
-- `world/obstacles`: one box per obstacle, coloured by kind; centres over time (pedestrians move);
-- `world/robot`: base pose over time; `world/robot/body`: static body box;
+- `world/obstacles/struck`, `world/obstacles/other`: one box per obstacle, coloured by kind, centres over
+  time (pedestrians move); only the obstacles the robot hit show their labels;
+- `world/robot`: base pose over time; `world/robot/body`: static body box, labelled; `world/robot/frame`:
+  a faint ring on the floor around the robot that the 3D view follows;
   `world/robot/wheels/<name>`: wheel mount (static), `.../tyre`: spin over time, colour turns red while
   a fault on that wheel is active, `.../tyre/spoke`: a bar that shows the spin;
 - `world/trajectory`: the whole driven path;
@@ -58,30 +60,43 @@ def log_arena(rec: rr.RecordingStream, trace: Trace) -> None:
     rec.log("world/arena/bounds", rr.LineStrips3D([corners], colors=[(30, 30, 30, 255)]), static=True)
 
 
-def log_obstacles(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> None:
-    """Obstacle boxes (static shape, colour and label; centres over time at the display rate)."""
+def log_obstacles(rec: rr.RecordingStream, trace: Trace, config: VizConfig, struck: list[int]) -> None:
+    """Obstacle boxes (static shape, colour and label; centres over time at the display rate).
+
+    The obstacles in `struck` go to `world/obstacles/struck` with their labels shown; the others to
+    `world/obstacles/other`, labelled on hover only, so that labels do not pile up around the robot.
+    """
     obstacles = trace.obstacles
     if not obstacles:
         return
-    rec.log(
-        "world/obstacles",
-        rr.Boxes3D.from_fields(
-            half_sizes=np.stack([o.size for o in obstacles]),
-            quaternions=_yaw_quaternions(np.array([o.yaw for o in obstacles])),
-            colors=[palette.OBSTACLE_COLORS.get(o.kind, (128, 128, 128, 255)) for o in obstacles],
-            labels=[f"{o.kind} ({o.material})" for o in obstacles],
-            fill_mode=rr.components.FillMode.Solid,
-        ),
-        static=True,
-    )
     idx = display_indices(trace.imu_time, config.pose_rate_hz)
-    centres = np.asarray(trace.obstacle_pos)[idx]
-    k = len(obstacles)
-    rec.send_columns(
-        "world/obstacles",
-        indexes=[_times(trace.imu_time[idx])],
-        columns=rr.Boxes3D.columns(centers=centres.reshape(-1, 3)).partition(np.full(idx.size, k)),
-    )
+    hit = [k for k in struck if 0 <= k < len(obstacles)]
+    rest = [k for k in range(len(obstacles)) if k not in hit]
+    for name, members, show in (("struck", hit, True), ("other", rest, False)):
+        if not members:
+            continue
+        path = f"world/obstacles/{name}"
+        chosen = [obstacles[k] for k in members]
+        rec.log(
+            path,
+            rr.Boxes3D.from_fields(
+                half_sizes=np.stack([o.size for o in chosen]),
+                quaternions=_yaw_quaternions(np.array([o.yaw for o in chosen])),
+                colors=[palette.OBSTACLE_COLORS.get(o.kind, (128, 128, 128, 255)) for o in chosen],
+                labels=[f"{o.kind} ({o.material})" for o in chosen],
+                fill_mode=rr.components.FillMode.Solid,
+                show_labels=show,
+            ),
+            static=True,
+        )
+        centres = np.asarray(trace.obstacle_pos)[idx][:, members]
+        rec.send_columns(
+            path,
+            indexes=[_times(trace.imu_time[idx])],
+            columns=rr.Boxes3D.columns(centers=centres.reshape(-1, 3)).partition(
+                np.full(idx.size, len(members))
+            ),
+        )
 
 
 def body_half_size(trace: Trace, config: VizConfig) -> np.ndarray:
@@ -112,9 +127,9 @@ def log_robot(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> np.nd
             centers=[[0.0, 0.0, body_z]],
             half_sizes=[half],
             colors=[palette.BODY],
-            labels=[f"{trace.robot.model} unit {trace.robot.unit_id}"],
+            labels=[f"robot ({trace.robot.model}, unit {trace.robot.unit_id})"],
             fill_mode=rr.components.FillMode.Solid,
-            show_labels=False,
+            show_labels=True,
         ),
         static=True,
     )
@@ -123,6 +138,7 @@ def log_robot(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> np.nd
         rr.Arrows3D(vectors=[[half[0] * 1.4, 0.0, 0.0]], origins=[[0.0, 0.0, body_z + half[2]]]),
         static=True,
     )
+    log_camera_frame(rec, config)
     for w, name in enumerate(trace.robot.wheel_names):
         radius = float(trace.robot.wheel_radius[w])
         mount = f"world/robot/wheels/{name}"
@@ -140,6 +156,7 @@ def log_robot(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> np.nd
                 rotation_axis_angles=[rr.RotationAxisAngle(axis=[1.0, 0.0, 0.0], degrees=90.0)],
                 fill_mode=rr.components.FillMode.Solid,
                 labels=[name],
+                show_labels=False,  # on hover only: four wheel names would bury the robot's own label
             ),
             static=True,
         )
@@ -159,6 +176,21 @@ def log_robot(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> np.nd
             static=True,
         )
     return idx
+
+
+FRAME = "world/robot/frame"
+"""A faint ring on the floor around the robot: what the 3D view follows."""
+
+
+def log_camera_frame(rec: rr.RecordingStream, config: VizConfig) -> None:
+    """The 3D view follows an entity by the bounds of what it draws, and the robot's pose draws nothing; the
+    body alone would pull the camera to half a metre. A ring of `follow_radius_m` around the robot gives
+    it something to follow that keeps nearby obstacles in view: the viewer puts the camera 1.5 times the
+    ring's bounding radius away, which is where the blueprint's eye starts too."""
+    angle = np.linspace(0.0, 2.0 * np.pi, 65)
+    r = config.follow_radius_m
+    ring = np.stack([r * np.cos(angle), r * np.sin(angle), np.full_like(angle, 0.01)], axis=1)
+    rec.log(FRAME, rr.LineStrips3D([ring], radii=[0.004], colors=[palette.FOLLOW_RING]), static=True)
 
 
 def wheel_fault_changes(trace: Trace, wheel: int) -> tuple[np.ndarray, np.ndarray]:
@@ -216,6 +248,7 @@ def log_contacts(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> No
         order = np.argsort(c.time, kind="stable")
         take, lengths = _recent(order, config.max_markers)
         labels = [f"{c.obstacle_kind[i]} {c.impulse[i]:.2f} N s" for i in take]
+        rec.log("world/contacts", rr.Points3D.from_fields(show_labels=False), static=True)  # hover only
         rec.send_columns(
             "world/contacts",
             indexes=[_times(np.asarray(c.time)[order])],
@@ -242,10 +275,12 @@ def log_contacts(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> No
         )
 
 
-def log_scene(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> None:
-    """Everything in the 3D view."""
+def log_scene(
+    rec: rr.RecordingStream, trace: Trace, config: VizConfig, struck: list[int] | None = None
+) -> None:
+    """Everything in the 3D view; `struck` are the obstacles whose labels are shown."""
     log_arena(rec, trace)
-    log_obstacles(rec, trace, config)
+    log_obstacles(rec, trace, config, struck or [])
     log_robot(rec, trace, config)
     log_trajectory(rec, trace, config)
     log_contacts(rec, trace, config)

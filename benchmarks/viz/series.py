@@ -15,6 +15,7 @@ Entity layout:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,7 @@ import rerun as rr
 from benchmarks.episode import Episode
 from benchmarks.viz import palette
 from benchmarks.viz.config import TIMELINE, VizConfig
+from benchmarks.viz.focus import AnomalySpan, ScoreAxis, score_axis
 from benchmarks.viz.scoring import EpisodeScores
 from benchmarks.viz.signals import band_spectrogram, colorize_db, display_indices, minmax_envelope, run_starts
 from msvdd.contract import WINDOW_S
@@ -37,13 +39,20 @@ def _times(t: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(TIMELINE, duration=np.asarray(t, dtype=np.float64))
 
 
-def _style(rec: rr.RecordingStream, path: str, names: list[str], colors: list[tuple[int, ...]] | None = None,
-           step: bool = False) -> None:  # fmt: skip
+def _style(
+    rec: rr.RecordingStream,
+    path: str,
+    names: list[str],
+    colors: Sequence[tuple[int, ...]] | None = None,
+    step: bool = False,
+    width: float | None = None,
+) -> None:
     rec.log(
         path,
         rr.SeriesLines(
             names=names,
-            colors=colors,
+            colors=list(colors) if colors is not None else None,
+            widths=None if width is None else [width] * len(names),
             interpolation_mode=rr.components.InterpolationMode.StepAfter if step else None,
         ),
         static=True,
@@ -54,11 +63,12 @@ def log_imu(rec: rr.RecordingStream, episode: Episode) -> None:
     """Every IMU sample: z velocity (the paper's input), accelerometer and gyro axes."""
     t = _times(episode.imu_time)
     rec.send_columns("signals/imu/vel_z", indexes=[t], columns=rr.Scalars.columns(scalars=episode.imu_vel_z))
-    _style(rec, "signals/imu/vel_z", ["z velocity (m/s)"])
+    _style(rec, "signals/imu/vel_z", ["z velocity (m/s)"], [palette.IMU])
+    xyz = list(palette.AXES)
     rec.send_columns("signals/imu/acc", indexes=[t], columns=rr.Scalars.columns(scalars=episode.imu6[:, :3]))
-    _style(rec, "signals/imu/acc", ["acc x (m/s²)", "acc y (m/s²)", "acc z (m/s²)"])
+    _style(rec, "signals/imu/acc", ["acc x (m/s²)", "acc y (m/s²)", "acc z (m/s²)"], xyz)
     rec.send_columns("signals/imu/gyro", indexes=[t], columns=rr.Scalars.columns(scalars=episode.imu6[:, 3:]))
-    _style(rec, "signals/imu/gyro", ["gyro x (rad/s)", "gyro y (rad/s)", "gyro z (rad/s)"])
+    _style(rec, "signals/imu/gyro", ["gyro x (rad/s)", "gyro y (rad/s)", "gyro z (rad/s)"], xyz)
 
 
 def log_wheel_speeds(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -> None:
@@ -69,7 +79,9 @@ def log_wheel_speeds(rec: rr.RecordingStream, trace: Trace, config: VizConfig) -
         indexes=[_times(trace.time[idx])],
         columns=rr.Scalars.columns(scalars=np.asarray(trace.wheel_speed)[idx]),
     )
-    _style(rec, "signals/wheels/speed", [f"{name} (rad/s)" for name in trace.robot.wheel_names])
+    names = trace.robot.wheel_names
+    colours = [palette.series_colour(i)[1] for i in range(len(names))]
+    _style(rec, "signals/wheels/speed", [f"{name} (rad/s)" for name in names], colours)
 
 
 def envelope_block(audio_rate: float, config: VizConfig) -> int:
@@ -80,7 +92,7 @@ def envelope_block(audio_rate: float, config: VizConfig) -> int:
 def log_audio(rec: rr.RecordingStream, episode: Episode, config: VizConfig) -> None:
     """Both microphones as a min/max envelope (one row per block, at the block's start time)."""
     block = envelope_block(episode.audio_rate, config)
-    colours = {"left": (70, 110, 220, 255), "right": (60, 170, 110, 255)}
+    colours = palette.MICROPHONES
     for channel, name in enumerate(("left", "right")):
         mins, maxs = minmax_envelope(episode.audio[:, channel], block)
         t = np.arange(mins.size) * (block / episode.audio_rate)
@@ -138,26 +150,104 @@ def frequency_ticks(band_centres: np.ndarray) -> tuple[np.ndarray, list[str]]:
     return rows, [f"{f / 1000:g} kHz" if f >= 1000 else f"{f:g} Hz" for f in inside]
 
 
+@dataclass(frozen=True)
+class SpectrogramLayout:
+    """Where a spectrogram image lies in its 2D view, and the margins left for its axis labels (view units:
+    one unit is one image column across, one stretched image row up)."""
+
+    width: float
+    """Image width (columns)."""
+    height: float
+    """Image height after stretching its rows."""
+    stretch: float
+    """Vertical scale of the image rows."""
+    left: float
+    """Margin left of the image for the frequency labels."""
+    bottom: float
+    """Margin under the image for the time labels."""
+    lift: float
+    """How far above its row a frequency label's point sits: the viewer draws a label under its point."""
+
+    @property
+    def x_range(self) -> tuple[float, float]:
+        """Horizontal bounds the view shows."""
+        return -self.left, self.width
+
+    @property
+    def y_range(self) -> tuple[float, float]:
+        """Vertical bounds the view shows (y grows downwards in 2D views)."""
+        return 0.0, self.height + self.bottom
+
+
+LABEL_MARGIN = 0.14
+"""Left margin of the whole-episode spectrogram for its frequency labels, as a fraction of its width."""
+
+
+def spectrogram_layout(spec: Spectrogram, aspect: float = EPISODE_ASPECT) -> SpectrogramLayout:
+    """A minute is thousands of columns but ~100 bands: stretch the rows so the strip reads at ~`aspect`:1,
+    and leave margins for labels."""
+    bands, frames, _ = spec.image.shape
+    stretch = max(1.0, frames / (aspect * max(bands, 1)))
+    height = bands * stretch
+    left = LABEL_MARGIN * frames
+    return SpectrogramLayout(float(frames), height, stretch, left, 0.22 * height, 0.11 * height)
+
+
+def time_ticks(duration_s: float, most: int = 8) -> np.ndarray:
+    """Round times (s) to label a time axis of `duration_s` with: a 1-2-5 step, at most `most` ticks."""
+    for step in (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0):
+        if duration_s / step <= most:
+            break
+    return np.arange(0.0, duration_s + 1e-9, step)
+
+
+def _label_points(
+    rec: rr.RecordingStream, path: str, xy: np.ndarray, labels: list[str], static: bool = True
+) -> None:
+    rec.log(
+        path,
+        rr.Points2D(xy, labels=labels, colors=[palette.LABEL], radii=0.01, show_labels=True),
+        static=static,
+    )
+
+
+def spaced_ticks(rows: np.ndarray, labels: list[str], min_gap: float) -> tuple[np.ndarray, list[str]]:
+    """The ticks, top row first, without those closer than `min_gap` rows to the one kept above them (low
+    bands are merged into few rows, so 100 Hz and 300 Hz can land almost on top of each other)."""
+    order = np.argsort(rows)
+    kept: list[int] = []
+    for i in order:
+        if not kept or rows[i] - rows[kept[-1]] >= min_gap:
+            kept.append(int(i))
+    return np.asarray(rows)[kept], [labels[i] for i in kept]
+
+
 def log_spectrogram(
     rec: rr.RecordingStream, spec: Spectrogram, window_ends: np.ndarray, config: VizConfig
-) -> None:
-    """The whole-episode image with a moving cursor, and the last-2-s image at each window end."""
+) -> SpectrogramLayout:
+    """The whole-episode image with a moving cursor and labelled axes, and the last-2-s image at each window
+    end; returns where the whole-episode image lies (for the view's bounds)."""
     bands, frames, _ = spec.image.shape
-    # A minute is thousands of columns but ~100 bands: stretch the rows so the strip reads at ~4:1.
-    stretch = max(1.0, frames / (EPISODE_ASPECT * bands))
-    rec.log("spectrogram/episode/image", rr.Transform3D(scale=[1.0, stretch, 1.0]), static=True)
+    layout = spectrogram_layout(spec)
+    rec.log("spectrogram/episode/image", rr.Transform3D(scale=[1.0, layout.stretch, 1.0]), static=True)
     rec.log("spectrogram/episode/image", rr.Image(spec.image, color_model="RGB"), static=True)
-    rows, labels = frequency_ticks(spec.band_centres)
-    rec.log(
-        "spectrogram/episode/image/ticks",
-        rr.Points2D(
-            np.stack([np.zeros_like(rows), rows], 1), labels=labels, colors=[palette.CURSOR], radii=0.5
-        ),
-        static=True,
+    rows, labels = spaced_ticks(*frequency_ticks(spec.band_centres), min_gap=0.14 * bands)
+    _label_points(
+        rec,
+        "spectrogram/episode/frequency",
+        np.stack([np.full_like(rows, -0.5 * layout.left), rows * layout.stretch - layout.lift], 1),
+        labels,
     )
     hop = config.spectrogram_hop_s
     t0 = float(spec.frame_times[0]) if frames else 0.0
     end = float(spec.frame_times[-1]) + hop if frames else 0.0
+    seconds = time_ticks(end)
+    _label_points(
+        rec,
+        "spectrogram/episode/seconds",
+        np.stack([(seconds - t0) / hop + 0.5, np.full_like(seconds, layout.height)], 1),
+        [f"{s:g} s" for s in seconds],
+    )
     cursor_t = np.arange(0.0, end, 1.0 / config.cursor_rate_hz)
     x = (cursor_t - t0) / hop + 0.5
     strips = np.stack([np.stack([x, np.zeros_like(x)], 1), np.stack([x, np.full_like(x, bands)], 1)], axis=1)
@@ -171,28 +261,33 @@ def log_spectrogram(
     width = max(1, round(WINDOW_S / hop))
     ends = np.asarray(window_ends, dtype=np.float64)
     if ends.size == 0 or frames < width:
-        return
+        return layout
     last = np.clip(np.searchsorted(spec.frame_times, ends, side="left"), width, frames)
     cols = (last - width)[:, None] + np.arange(width)
     images = np.ascontiguousarray(np.moveaxis(spec.image[:, cols], 1, 0))  # (k, B, width, 3)
     rec.log(
-        "spectrogram/window",
+        "spectrogram/window/image",
         rr.Image.from_fields(format=rr.components.ImageFormat(width=width, height=bands, color_model="RGB",
                                                               channel_datatype="U8")),
         static=True,
     )  # fmt: skip
-    rec.log(
-        "spectrogram/window/ticks",
-        rr.Points2D(
-            np.stack([np.zeros_like(rows), rows], 1), labels=labels, colors=[palette.CURSOR], radii=0.5
-        ),
-        static=True,
+    _label_points(
+        rec,
+        "spectrogram/window/frequency",
+        np.stack([np.full_like(rows, -0.5 * window_label_margin(width)), rows - 0.11 * bands], 1),
+        labels,
     )
     rec.send_columns(
-        "spectrogram/window",
+        "spectrogram/window/image",
         indexes=[_times(ends)],
         columns=rr.Image.columns(buffer=images.reshape(ends.size, -1)),
     )
+    return layout
+
+
+def window_label_margin(width: int) -> float:
+    """Left margin of the last-2-s spectrogram for its frequency labels, image columns."""
+    return 0.45 * width
 
 
 def state_name(label: int, sub_kind: int, wheel: int, wheel_names: tuple[str, ...]) -> str:
@@ -228,19 +323,60 @@ def log_truth(rec: rr.RecordingStream, episode: Episode, wheel_names: tuple[str,
     rec.send_columns("states/truth", indexes=[_times(t[starts])], columns=rr.StateChange.columns(state=names))
 
 
-def log_scores(rec: rr.RecordingStream, scores: EpisodeScores) -> None:
-    """Score and threshold at every window end; detections where score > threshold; the alarm lane."""
+def truth_steps(
+    spans: list[AnomalySpan], duration_s: float, low: float, high: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ground truth as a step series: `low` while normal, `high` inside every anomaly span.
+
+    Returns:
+        (times, values): a value holds from its time to the next (step-after interpolation); starts at 0 s
+        and ends at `duration_s`.
+    """
+    times, values = [0.0], [low]
+    for span in spans:
+        if span.start <= times[-1]:
+            values[-1] = high
+        else:
+            times.append(span.start)
+            values.append(high)
+        times.append(span.end)
+        values.append(low)
+    if times[-1] < duration_s:
+        times.append(duration_s)
+        values.append(values[-1])
+    keep = np.asarray(times) <= max(duration_s, 0.0)
+    return np.asarray(times)[keep], np.asarray(values)[keep]
+
+
+def log_scores(
+    rec: rr.RecordingStream, scores: EpisodeScores, spans: list[AnomalySpan], duration_s: float,
+    axis: ScoreAxis | None = None,
+) -> None:  # fmt: skip
+    """Score at every window end; the threshold as a line over the whole episode; detections where
+    score > threshold; the ground truth as a step in the strip under the scores (see `ScoreAxis`); the
+    alarm lane."""
+    axis = axis if axis is not None else score_axis(scores.score, scores.threshold)
     t = _times(scores.end_s)
     rec.send_columns("detector/score", indexes=[t], columns=rr.Scalars.columns(scalars=scores.score))
-    _style(rec, "detector/score", [f"{scores.method} score"], [palette.SCORE])
-    threshold = np.full(scores.score.shape, scores.threshold)
-    rec.send_columns("detector/threshold", indexes=[t], columns=rr.Scalars.columns(scalars=threshold))
-    _style(rec, "detector/threshold", ["threshold"], [palette.THRESHOLD])
+    _style(rec, "detector/score", [f"{scores.method} score"], [palette.SCORE], width=2.0)
+    threshold_t = np.unique(np.concatenate([[0.0], scores.end_s, [duration_s]]))
+    rec.send_columns(
+        "detector/threshold",
+        indexes=[_times(threshold_t)],
+        columns=rr.Scalars.columns(scalars=np.full(threshold_t.shape, scores.threshold)),
+    )
+    _style(rec, "detector/threshold", ["threshold"], [palette.THRESHOLD], width=1.5)
+    truth_t, truth_v = truth_steps(spans, duration_s, axis.truth_low, axis.truth_high)
+    rec.send_columns(
+        "detector/truth", indexes=[_times(truth_t)], columns=rr.Scalars.columns(scalars=truth_v)
+    )
+    truth_colour = palette.LABEL_COLORS[spans[0].label] if spans else palette.LABEL_COLORS["collision"]
+    _style(rec, "detector/truth", ["true anomaly (up = anomalous)"], [truth_colour], step=True, width=2.0)
     hit = scores.detected
     rec.log(
         "detector/detection",
         rr.SeriesPoints(
-            names=["detection"], colors=[palette.DETECTION], markers=["Cross"], marker_sizes=[4.0]
+            names=["detection"], colors=[palette.DETECTION], markers=["Cross"], marker_sizes=[6.0]
         ),
         static=True,
     )
@@ -254,12 +390,18 @@ def log_scores(rec: rr.RecordingStream, scores: EpisodeScores) -> None:
     starts = run_starts(hit)
     rec.log(
         "states/detector",
-        rr.StateConfiguration(values=["alarm", "quiet"], colors=[palette.DETECTION, (70, 70, 70, 255)]),
+        rr.StateConfiguration(
+            values=["alarm", "quiet", NO_SCORE], colors=[palette.DETECTION, palette.QUIET, palette.NO_SCORE]
+        ),
         static=True,
     )
     if starts.size:
         rec.send_columns(
             "states/detector",
-            indexes=[_times(scores.end_s[starts])],
-            columns=rr.StateChange.columns(state=alarm[starts].tolist()),
+            indexes=[_times(np.concatenate([[0.0], scores.end_s[starts]]))],
+            columns=rr.StateChange.columns(state=[NO_SCORE, *alarm[starts].tolist()]),
         )
+
+
+NO_SCORE = "no score yet"
+"""Detector lane state before the first window ends (a score needs a whole window)."""

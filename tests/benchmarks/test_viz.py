@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
+import sys
+import urllib.request
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
 import synth_audio
 from benchmarks.cli import main
 from benchmarks.dataset import window_starts
 from benchmarks.episode import EpisodeMeta, read_episode, write_episode
+from benchmarks.errors import UserError
 from benchmarks.methods import make, save_detector
 from benchmarks.viz import VizConfig, log_episode, score_episode
+from benchmarks.viz.focus import struck_obstacles
 from benchmarks.viz.scene import wheel_fault_changes
 from benchmarks.viz.series import envelope_block
+from benchmarks.viz.serve import free_port, has_display, viewer_url
 from benchmarks.viz.signals import display_indices
 from msvdd import preprocess
 from sim.trace import ContactEvents, FaultRecord, ObstacleRecord, RobotInfo, Trace, TransientEvents
@@ -142,6 +150,27 @@ def _column(path: Path, entity: str, component: str) -> tuple[np.ndarray, np.nda
     return np.concatenate(times)[order], np.concatenate(values)[order]
 
 
+def _blueprint(path: Path) -> dict[str, dict[str, Any]]:
+    """The default blueprint of a recording: entity path -> {`Archetype:field`: value} (one instance: the
+    value itself, several: their list)."""
+    reader = RrdReader(path)
+    out: dict[str, dict[str, Any]] = {}
+    for chunk in reader.store(store=reader.blueprints()[0]).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        fields = out.setdefault(chunk.entity_path, {})
+        for name in batch.schema.names:
+            if ":" not in name:
+                continue
+            value = batch.column(name).to_pylist()[-1]
+            fields[name] = value[0] if isinstance(value, list) and len(value) == 1 else value
+    return out
+
+
+def _views(blueprint: dict[str, dict[str, Any]], kind: str) -> dict[str, dict[str, Any]]:
+    """View entity path -> its fields, for the views of one class (`TimeSeries`, `3D`, ...)."""
+    return {p: f for p, f in blueprint.items() if f.get("ViewBlueprint:class_identifier") == kind}
+
+
 @pytest.fixture(scope="module")
 def recording(dataset: Path, model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("viz") / "sub" / "episode.rrd"
@@ -165,7 +194,8 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     n_windows = window_starts(DURATION, 0.5, first_s=0.0).size
     assert n_windows == 3
     assert rows["/detector/score:Scalars:scalars"] == n_windows
-    assert rows["/detector/threshold:Scalars:scalars"] == n_windows
+    assert rows["/detector/threshold:Scalars:scalars"] == n_windows + 1  # from 0 s: a line over the episode
+    assert rows["/detector/truth:Scalars:scalars"] >= 4  # the ground-truth step inside the score plot
     n_pose = display_indices(trace.time, cfg.pose_rate_hz).size
     assert rows["/world/robot:Transform3D:translation"] == n_pose
     assert rows["/signals/wheels/speed:Scalars:scalars"] == n_pose
@@ -175,9 +205,10 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     assert rows["/world/robot/wheels/front_right/tyre:Cylinders3D:colors"] == 3  # healthy, faulty, healthy
     assert rows["/world/contacts:Points3D:positions"] == 1
     assert rows["/world/transients:Points3D:positions"] == 1
-    assert rows["/world/obstacles:Boxes3D:centers"] == display_indices(trace.imu_time, cfg.pose_rate_hz).size
+    n_obstacle_rows = display_indices(trace.imu_time, cfg.pose_rate_hz).size
+    assert rows["/world/obstacles/struck:Boxes3D:centers"] == n_obstacle_rows  # the wall it hit
     assert rows["/states/truth:StateChange:state"] == 5  # normal, collision, normal, mechanical, normal
-    assert rows["/spectrogram/window:Image:buffer"] == n_windows
+    assert rows["/spectrogram/window/image:Image:buffer"] == n_windows
     assert "static /spectrogram/episode/image:Image:buffer" in rows
     assert rows["/spectrogram/episode/image/cursor:LineStrips2D:strips"] == 60  # 20 Hz over 3 s
     assert rows["/audio:AssetAudio:blob"] == 1
@@ -186,10 +217,11 @@ def test_recording_has_every_entity_with_the_logged_row_counts(dataset: Path, re
     for key in ("static /world/arena/floor:Boxes3D:half_sizes", "static /world/robot/body:Boxes3D:half_sizes",
                 "static /world/trajectory:LineStrips3D:strips"):  # fmt: skip
         assert key in rows
-    reader = RrdReader(recording)
-    blueprint = reader.store(store=reader.blueprints()[0]).summary()
-    views = [line for line in blueprint.splitlines() if "ViewBlueprint:class_identifier" in line]
-    assert len(views) == 13  # 3D, 7 plots, state lanes, 2 spectrograms, event log, audio player
+    views = [v["ViewBlueprint:class_identifier"] for v in _blueprint(recording).values()
+             if "ViewBlueprint:class_identifier" in v]  # fmt: skip
+    # 3D; score, IMU z, microphones, accelerometer, gyroscope, wheels; lanes; 2 spectrograms; events; audio
+    expected = ["3D", *["TimeSeries"] * 6, "StateTimeline", "2D", "2D", "TextLog", "Audio"]
+    assert sorted(views) == sorted(expected)
 
 
 def test_scores_threshold_and_detections_match_the_detector(
@@ -219,7 +251,7 @@ def test_without_model_no_detector_entities(dataset: Path, tmp_path: Path) -> No
     rows = _rows(out)
     assert not any(k.startswith("/detector") for k in rows)
     assert "/audio:AssetAudio:blob" not in rows
-    assert rows["/spectrogram/window:Image:buffer"] == 3
+    assert rows["/spectrogram/window/image:Image:buffer"] == 3
 
 
 def test_wheel_fault_changes_merge_overlaps() -> None:
@@ -264,7 +296,9 @@ def test_cli_writes_a_recording_and_reports_errors(
         main(["viz", "--data", str(dataset), "--episode", EPISODE, "--model", str(model), "--save", str(out)])
         == 0
     )
-    assert f"rerun {out}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"rerun {out}" in printed
+    assert f"rerun --serve-web --bind 127.0.0.1 {out}" in printed  # the way to view it without a display
     assert _rows(out)["/detector/score:Scalars:scalars"] == 3
     assert main(["viz", "--data", str(dataset), "--episode", "missing-000", "--save", str(out)]) == 2
     assert "msvdd-bench viz: error: episode folder not found" in capsys.readouterr().err
@@ -302,3 +336,179 @@ def test_generated_episode_scores_match_the_evaluation_windows(tiny_dataset: Pat
     assert counts["/detector/score:Scalars:scalars"] == n_windows
     wheel = episode.trace().robot.wheel_names[rows[0].wheel]
     assert counts[f"/world/robot/wheels/{wheel}/tyre:Cylinders3D:colors"] >= 2  # turns red at the onset
+
+
+FIRST_ANOMALY = (1.2, 1.3)
+"""The tiny trace's first anomaly: the wall contact labelled 1.2 s to 1.3 s."""
+
+
+def test_blueprint_opens_paused_with_the_first_anomaly_selected(recording: Path) -> None:
+    bp = _blueprint(recording)
+    panel = bp["/time_panel"]
+    assert panel["TimePanelBlueprint:timeline"] == "time"
+    assert panel["TimePanelBlueprint:play_state"] == rrb.components.PlayState.Paused.value  # not at the end
+    selection = panel["TimePanelBlueprint:time_selection"]
+    assert (selection["min"], selection["max"]) == tuple(round(t * 1e9) for t in FIRST_ANOMALY)
+    assert panel["TimePanelBlueprint:loop_mode"] == rrb.components.LoopMode.Selection.value
+    for side in ("/blueprint_panel", "/selection_panel"):  # the viewport gets the whole window
+        assert bp[side]["PanelBlueprint:state"] == rrb.components.PanelState.Collapsed.value
+
+
+def test_every_plot_has_one_time_axis_from_zero_to_the_end_and_no_legend(recording: Path) -> None:
+    bp = _blueprint(recording)
+    plots = {**_views(bp, "TimeSeries"), **_views(bp, "StateTimeline")}
+    assert len(plots) == 7
+    for path in plots:
+        axis = bp[f"{path}/TimeAxis"]
+        assert axis["TimeAxis:link"] == rrb.components.LinkAxis.LinkToGlobal.value
+        assert axis["TimeAxis:view_range"] == {"start": 0, "end": round(DURATION * 1e9)}
+    for path in _views(bp, "TimeSeries"):
+        assert bp[f"{path}/PlotLegend"]["PlotLegend:visible"] is False  # titles name the lines instead
+    # every temporal entity of the recording is on the one `time` timeline, in seconds from 0
+    summary = RrdReader(recording).store().summary()
+    for line in summary.splitlines():
+        if "static=False" in line:
+            assert "timelines=['time']" in line, line
+    for entity in ("/detector/threshold", "/detector/truth", "/truth/label", "/signals/imu/vel_z"):
+        assert _column(recording, entity, "scalars")[0][0] == 0.0, entity
+
+
+def test_score_plot_holds_scores_threshold_and_truth_apart(recording: Path) -> None:
+    bp = _blueprint(recording)
+    plots = _views(bp, "TimeSeries")
+    (score_view,) = [p for p, f in plots.items() if "score" in f["ViewBlueprint:display_name"]]
+    low, high = bp[f"{score_view}/ScalarAxis"]["ScalarAxis:range"]
+    _, score = _column(recording, "/detector/score", "scalars")
+    _, threshold = _column(recording, "/detector/threshold", "scalars")
+    t_truth, truth = _column(recording, "/detector/truth", "scalars")
+    values = np.concatenate([score.ravel(), threshold.ravel()])
+    assert low < truth.min() and truth.max() < values.min() and values.max() < high
+    # the step is up inside the labelled anomalies (1.2-1.3 s collision, 1.5-2.5 s fault), down elsewhere
+    up = truth.ravel() == truth.max()
+    np.testing.assert_allclose(t_truth[up], [1.2, 1.5])
+    np.testing.assert_allclose(t_truth[~up][:3], [0.0, 1.3, 2.5])
+
+
+def test_3d_view_follows_the_robot_and_labels_only_robot_and_struck_obstacle(recording: Path) -> None:
+    bp = _blueprint(recording)
+    (scene,) = _views(bp, "3D")
+    eye = bp[f"{scene}/EyeControls3D"]
+    assert eye["EyeControls3D:tracking_entity"] == "/world/robot/frame"  # moves with the robot
+    assert "static /world/robot/frame:LineStrips3D:strips" in _rows(recording)
+    shown: dict[str, bool] = {}
+    for chunk in RrdReader(recording).store().stream().to_chunks():
+        names = chunk.to_record_batch().schema.names
+        col = next((n for n in names if n.endswith(":show_labels")), None)
+        if col is not None:
+            shown[chunk.entity_path] = bool(chunk.to_record_batch().column(col).to_pylist()[-1][0])
+    assert shown["/world/robot/body"] and shown["/world/obstacles/struck"]
+    assert not shown["/world/contacts"]
+    tyres = [p for p in shown if p.endswith("/tyre")]
+    assert len(tyres) == 4 and not any(shown[p] for p in tyres)
+    assert {p for p, on in shown.items() if on and p.startswith("/world")} == {
+        "/world/robot/body", "/world/obstacles/struck"
+    }
+
+
+def test_spawn_without_a_display_fails_at_once(
+    dataset: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import rerun as rr
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+
+    def no_spawn(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a viewer was spawned without a display")
+
+    monkeypatch.setattr(rr.RecordingStream, "spawn", no_spawn)
+    assert main(["viz", "--data", str(dataset), "--episode", EPISODE, "--spawn"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "--spawn needs a display" in err[0] and "--serve-web" in err[0] and "--save" in err[0]
+    with pytest.raises(UserError, match="DISPLAY"):
+        log_episode(dataset, EPISODE, spawn=True)
+    assert main(["viz", "--data", str(dataset), "--episode", EPISODE]) == 2
+    assert "--serve-web" in capsys.readouterr().err
+
+
+def test_has_display_by_platform_and_environment() -> None:
+    assert not has_display({}, "linux")
+    assert has_display({"DISPLAY": ":0"}, "linux")
+    assert has_display({"WAYLAND_DISPLAY": "wayland-0"}, "linux")
+    assert not has_display({"DISPLAY": ""}, "freebsd14")
+    assert has_display({}, "darwin") and has_display({}, "win32")
+
+
+def test_serve_web_binds_localhost_prints_the_url_and_stops(
+    dataset: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from benchmarks.commands import viz as viz_command
+
+    web, grpc = free_port(), free_port()
+    seen: list[str] = []
+
+    def interrupt_after_a_look() -> None:
+        url = capsys.readouterr().out.split("open ", 1)[1].split()[0]
+        seen.append(url)
+        with urllib.request.urlopen(url, timeout=5) as page:
+            assert page.status == 200 and b"Rerun" in page.read()
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(viz_command, "_wait_forever", interrupt_after_a_look)
+    saved = tmp_path / "served.rrd"
+    argv = ["viz", "--data", str(dataset), "--episode", EPISODE, "--serve-web",
+            "--web-port", str(web), "--grpc-port", str(grpc), "--save", str(saved), "--no-audio"]  # fmt: skip
+    assert main(argv) == 0
+    assert seen == [viewer_url(web, grpc)]
+    assert seen[0].startswith(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy")
+    assert saved.is_file() and "stopped" in capsys.readouterr().out
+    with pytest.raises(OSError):  # the server is gone
+        urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=2)
+    assert main([*argv[:-1], "--web-port", str(grpc)]) == 2  # same port twice: refused
+
+
+def test_struck_obstacle_is_the_one_of_that_kind_nearest_the_contact() -> None:
+    trace = tiny_trace()
+    near = ObstacleRecord("wall", "plaster", np.array([1.2, 0.5, 0.5]), np.array([0.05, 1.0, 0.5]), 0.1)
+    far = ObstacleRecord("wall", "plaster", np.array([-2.0, 0.0, 0.5]), np.array([0.05, 1.0, 0.5]), 0.0)
+    chair = ObstacleRecord("chair", "wood", np.array([1.0, 0.6, 0.1]), np.array([0.2, 0.2, 0.2]), 0.0)
+    obstacles = (far, chair, near)
+    positions = np.tile(np.stack([o.position for o in obstacles]), (trace.imu_time.size, 1, 1))
+    two = dataclasses.replace(trace, obstacles=obstacles, obstacle_pos=positions)
+    assert struck_obstacles(two) == [2]  # the chair is nearer, but the contact names a wall
+    no_near = dataclasses.replace(two, obstacles=obstacles[:2], obstacle_pos=positions[:, :2])
+    assert struck_obstacles(no_near) == [0]
+
+
+def test_generated_collision_opens_on_its_first_anomaly(
+    tiny_dataset: Path, tiny_model: Path, tmp_path: Path
+) -> None:
+    """On a generated collision episode scored by M-SVDD: the blueprint selects the first labelled anomaly,
+    the score plot's axis holds scores and threshold, and the struck obstacle is the one labelled."""
+    from benchmarks.viz.focus import anomaly_spans
+
+    collisions = sorted(p.name for p in tiny_dataset.glob("test-collision-*"))
+    assert collisions, "the tiny preset has collision episodes"
+    for episode_id in collisions:
+        episode = read_episode(tiny_dataset / episode_id)
+        spans = anomaly_spans(episode.imu_time, episode.label)
+        if spans and len(episode.trace().contacts.time):
+            break
+    else:
+        pytest.skip("no tiny collision episode has a labelled contact")
+    out = log_episode(tiny_dataset, episode_id, model_dir=tiny_model, save=tmp_path / "c.rrd")
+    assert out is not None
+    bp = _blueprint(out)
+    selection = bp["/time_panel"]["TimePanelBlueprint:time_selection"]
+    assert selection["min"] == round(spans[0].start * 1e9)
+    assert selection["max"] == round(spans[0].end * 1e9)
+    rows = _rows(out)
+    assert rows["/world/obstacles/struck:Boxes3D:centers"] > 0
+    plots = _views(bp, "TimeSeries")
+    (score_view,) = [p for p, f in plots.items() if "msvdd" in f["ViewBlueprint:display_name"]]
+    low, high = bp[f"{score_view}/ScalarAxis"]["ScalarAxis:range"]
+    _, score = _column(out, "/detector/score", "scalars")
+    _, threshold = _column(out, "/detector/threshold", "scalars")
+    assert low < min(score.min(), threshold[0]) and max(score.max(), threshold[0]) < high

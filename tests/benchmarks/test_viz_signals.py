@@ -104,3 +104,81 @@ def test_config_refuses_bad_values() -> None:
         VizConfig(pose_rate_hz=0.0)
     with pytest.raises(ValueError, match="spectrogram_fmin_hz"):
         VizConfig(spectrogram_fmin_hz=20000.0)
+
+
+def test_anomaly_spans_are_the_runs_of_non_normal_labels() -> None:
+    from benchmarks.viz.focus import AnomalySpan, anomaly_spans
+
+    t = np.arange(8) * 0.5
+    spans = anomaly_spans(t, np.array([0, 1, 1, 0, 2, 2, 2, 2]))
+    assert spans == [AnomalySpan(0.5, 1.5, "collision"), AnomalySpan(2.0, 4.0, "mechanical")]
+    assert anomaly_spans(t, np.zeros(8)) == []
+    two = anomaly_spans(t, np.array([1, 1, 2, 0, 0, 0, 0, 0]), end_s=5.0)
+    assert two == [AnomalySpan(0.0, 1.0, "collision"), AnomalySpan(1.0, 1.5, "mechanical")]
+    last = anomaly_spans(t, np.array([0, 0, 0, 0, 0, 0, 2, 2]), end_s=5.0)
+    assert last == [AnomalySpan(3.0, 5.0, "mechanical")]  # runs to the episode's end
+    with pytest.raises(ValueError, match="samples"):
+        anomaly_spans(t, np.zeros(3))
+
+
+def test_truth_steps_rise_inside_spans_and_cover_the_episode() -> None:
+    from benchmarks.viz.focus import AnomalySpan
+    from benchmarks.viz.series import truth_steps
+
+    spans = [AnomalySpan(0.0, 1.0, "collision"), AnomalySpan(2.0, 3.0, "mechanical")]
+    t, v = truth_steps(spans, 4.0, -1.0, 1.0)
+    np.testing.assert_allclose(t, [0.0, 1.0, 2.0, 3.0, 4.0])
+    np.testing.assert_allclose(v, [1.0, -1.0, 1.0, -1.0, -1.0])
+    t, v = truth_steps([], 4.0, 0.0, 1.0)
+    np.testing.assert_allclose(t, [0.0, 4.0])
+    np.testing.assert_allclose(v, [0.0, 0.0])
+
+
+def test_score_axis_holds_scores_and_threshold_above_the_truth_strip() -> None:
+    from benchmarks.viz.focus import score_axis
+
+    axis = score_axis(np.array([1.0, 2.0, 3.0]), threshold=5.0)  # threshold above every score
+    assert axis.bottom < axis.truth_low < axis.truth_high < 1.0
+    assert axis.top > 5.0
+    axis = score_axis(np.array([np.nan, 2.0]), threshold=2.0)  # flat and one NaN: still a range
+    assert axis.bottom < axis.truth_high < 2.0 < axis.top
+
+
+def test_spectrogram_axis_labels() -> None:
+    from benchmarks.viz.series import Spectrogram, spaced_ticks, spectrogram_layout, time_ticks
+
+    np.testing.assert_allclose(time_ticks(14.0), [0, 2, 4, 6, 8, 10, 12, 14])
+    np.testing.assert_allclose(time_ticks(60.0), np.arange(0, 61, 10))
+    names = ["100 Hz", "300 Hz", "1 kHz", "3 kHz"]
+    rows, labels = spaced_ticks(np.array([90.5, 88.0, 60.0, 30.0]), names, 10.0)
+    np.testing.assert_allclose(rows, [30.0, 60.0, 88.0])  # 100 Hz is 2.5 rows under 300 Hz: dropped
+    assert labels == ["3 kHz", "1 kHz", "300 Hz"]
+    spec = Spectrogram(np.arange(700) * 0.02, np.zeros((96, 700, 3), np.uint8), np.geomspace(40, 16000, 96))
+    layout = spectrogram_layout(spec)
+    assert layout.height == pytest.approx(700 / 4)  # rows stretched to a 4:1 strip
+    assert layout.x_range[0] < 0 and layout.y_range[1] > layout.height  # room for the labels
+
+
+def test_events_show_their_time_first() -> None:
+    from benchmarks.viz.events import TextEvent, event_line
+
+    assert event_line(TextEvent(7.8, "WARN", "collision: wall")) == "  7.80 s  collision: wall"
+
+
+def test_shot_sizes_and_small_pngs() -> None:
+    import io
+
+    from PIL import Image
+
+    from benchmarks.errors import UserError
+    from benchmarks.viz.shots import parse_size, shrink_png
+
+    assert parse_size("1440x900") == (1440, 900)
+    for bad in ("1440", "axb", "10x10"):
+        with pytest.raises(UserError, match="--size"):
+            parse_size(bad)
+    raw = io.BytesIO()
+    Image.new("RGB", (64, 32), (10, 20, 30)).save(raw, format="PNG")
+    small = Image.open(io.BytesIO(shrink_png(raw.getvalue())))
+    assert small.size == (64, 32) and small.mode == "P"
+    assert small.convert("RGB").getpixel((5, 5)) == (10, 20, 30)

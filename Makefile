@@ -51,7 +51,7 @@ perf: $(STAMP)
 # (`apt-get install chromium`); one browser at a time, about a minute a shot. Not part of `make test` or CI.
 SHOTS_DATA ?= runs/demo/dataset
 SHOTS_MODEL ?= runs/demo/models/msvdd-seed0
-SHOTS_EPISODES ?= test-collision-001 test-fault-000
+SHOTS_EPISODES ?= test-collision-001 test-fault-001 test-fault-000
 viewer-shots: $(STAMP)
 	@test -d $(SHOTS_DATA) || { echo "no dataset at $(SHOTS_DATA): run make demo first"; exit 2; }
 	$(PY) -m benchmarks.viz.shots --data $(SHOTS_DATA) --model $(SHOTS_MODEL) \

@@ -59,7 +59,7 @@ def _run(args: argparse.Namespace) -> int:
         recordings.append(path)
     print(f"wrote {out}: results.md, results.json, scores.csv, figures/")
     for path in recordings:
-        print(f"view a recording: rerun {path}")
+        print(f"view a recording: rerun {path}  (no display: rerun --serve-web --bind 127.0.0.1 {path})")
     return 0
 
 

@@ -38,15 +38,18 @@ from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
 from sim import vocab
-from sim.random_scenarios import OBSTACLE_ENVIRONMENTS, SETTLE_S, scale_speeds
+from sim.random_scenarios import OBSTACLE_ENVIRONMENTS, SETTLE_S, ScenarioOptions, scale_speeds
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
-DATASET_FORMAT_VERSION = 2
+DATASET_FORMAT_VERSION = 3
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
 training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal_test_duration_s`).
+3: episodes of format 2 (`benchmarks.episode`: 16-bit dithered audio, float32 trace signals); same manifest.
 """
+READABLE_DATASET_FORMATS: tuple[int, ...] = (2, 3)
+"""Dataset format versions `open_dataset` reads (episode folders of either episode format)."""
 
 WINDOW_COLUMNS: tuple[str, ...] = (
     "window_id",
@@ -105,6 +108,20 @@ class EpisodeSpec:
     """Factor on the cruise speeds (`sim.random_scenarios.scale_speeds`)."""
     approach_speed_scale: float = 1.0
     """Factor on the speeds of the legs driven at an obstacle."""
+
+    def scenario_options(self) -> ScenarioOptions:
+        """What `sim.draw_scenario` draws the episode's scenario with (before `scale_speeds`)."""
+        return ScenarioOptions(
+            duration=self.duration_s,
+            environment=self.environment,
+            obstacle_kind=self.obstacle_kind,
+            fault_kind=self.fault_kind,
+            wheel=self.wheel,
+            severity=self.severity,
+            unit_id=self.unit_id,
+            transient_density=self.transient_density,
+            surface=self.surface,
+        )
 
 
 @dataclass(frozen=True)
@@ -171,10 +188,10 @@ def split_floors(preset: Preset, side: str) -> list[tuple[str, str]] | None:
 
 def _anomaly_floor(
     floors: list[tuple[str, str]] | None, obstacle_kind: str | None, count: int, preset: Preset
-) -> dict[str, str | None]:
+) -> tuple[str | None, str | None]:
     """The environment and surface of the `count`-th test anomaly episode (None each: drawn freely)."""
     if floors is None:
-        return {"environment": None, "surface": None}
+        return None, None
     where = OBSTACLE_ENVIRONMENTS.get(obstacle_kind or "", vocab.ENVIRONMENTS)
     usable = [f for f in floors if f[0] in where]
     if not usable:
@@ -182,8 +199,7 @@ def _anomaly_floor(
             f"preset {preset.name!r}: obstacle kind {obstacle_kind!r} stands only {' or '.join(where)}, "
             f"outside every test floor {floors}"
         )
-    env, surface = usable[count % len(usable)]
-    return {"environment": env, "surface": surface}
+    return usable[count % len(usable)]
 
 
 def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
@@ -191,7 +207,18 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
     rng = np.random.default_rng(np.random.SeedSequence([seed, 7919]))
     specs: list[EpisodeSpec] = []
 
-    def add(category: str, split: str, units: tuple[int, ...], duration: float, **kw: object) -> None:
+    def add(
+        category: str,
+        split: str,
+        units: tuple[int, ...],
+        duration: float,
+        *,
+        environment: str | None = None,
+        surface: str | None = None,
+        obstacle_kind: str | None = None,
+        fault_kind: str | None = None,
+        wheel: int | None = None,
+    ) -> None:
         index = len(specs)
         count = sum(1 for s in specs if s.category == category and s.split == split)
         specs.append(
@@ -203,13 +230,13 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
                 unit_id=int(units[index % len(units)]),
                 snr_db=float(rng.uniform(*preset.snr_db)),
                 duration_s=duration,
-                environment=kw.get("environment"),  # type: ignore[arg-type]
-                obstacle_kind=kw.get("obstacle_kind"),  # type: ignore[arg-type]
-                fault_kind=kw.get("fault_kind"),  # type: ignore[arg-type]
-                wheel=kw.get("wheel"),  # type: ignore[arg-type]
+                environment=environment,
+                obstacle_kind=obstacle_kind,
+                fault_kind=fault_kind,
+                wheel=wheel,
                 severity=preset.severity,
                 transient_density=preset.transient_density,
-                surface=kw.get("surface"),  # type: ignore[arg-type]
+                surface=surface,
                 drive_speed_scale=preset.drive_speed_scale,
                 approach_speed_scale=preset.approach_speed_scale,
             )
@@ -234,17 +261,19 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
     anomalies = 0
     for kind in preset.obstacle_kinds:
         for _ in range(preset.collisions_per_kind):
-            where = _anomaly_floor(test_floors, kind, anomalies, preset)
+            environment, surface = _anomaly_floor(test_floors, kind, anomalies, preset)
             anomalies += 1
             duration = preset.collision_duration_s
-            add("collision", "test", preset.test_units, duration, obstacle_kind=kind, **where)
+            add("collision", "test", preset.test_units, duration, obstacle_kind=kind,
+                environment=environment, surface=surface)  # fmt: skip
     for fault in preset.fault_kinds:
         for wheel in preset.wheels:
             for _ in range(preset.faults_per_kind_wheel):
-                where = _anomaly_floor(test_floors, None, anomalies, preset)
+                environment, surface = _anomaly_floor(test_floors, None, anomalies, preset)
                 anomalies += 1
                 duration = preset.fault_duration_s
-                add("fault", "test", preset.test_units, duration, fault_kind=fault, wheel=wheel, **where)
+                add("fault", "test", preset.test_units, duration, fault_kind=fault, wheel=wheel,
+                    environment=environment, surface=surface)  # fmt: skip
     return specs
 
 
@@ -259,21 +288,10 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
     The folder is written beside its place and renamed into it, replacing a copy an earlier attempt of the
     same task left (the same spec always gives the same bytes), so a retried task is harmless.
     """
-    scenario = sim.random_scenario(
-        spec.seed,
-        spec.category,
-        duration=spec.duration_s,
-        environment=spec.environment,
-        obstacle_kind=spec.obstacle_kind,
-        fault_kind=spec.fault_kind,
-        wheel=spec.wheel,
-        severity=spec.severity,
-        unit_id=spec.unit_id,
-        transient_density=spec.transient_density,
-        surface=spec.surface,
-    )
+    scenario = sim.draw_scenario(spec.seed, spec.category, spec.scenario_options())
     scenario = scale_speeds(scenario, spec.drive_speed_scale, spec.approach_speed_scale)
-    trace = sim.simulate(scenario)
+    # Render what the file keeps, so that the audit's re-render from trace.npz reproduces this audio exactly.
+    trace = sim.simulate(scenario).at_storage_precision()
     audio = synth_audio.render(trace, episode_audio_config(spec), seed=spec.seed)
     meta = EpisodeMeta(
         episode_id=spec.episode_id,
@@ -560,10 +578,11 @@ def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dat
         raise InputNotFoundError(f"not a dataset (no manifest.json): {path}")
     manifest = json.loads(manifest_path.read_text())
     version = manifest.get("format_version")
-    if version != DATASET_FORMAT_VERSION:
+    if version not in READABLE_DATASET_FORMATS:
+        readable = " or ".join(str(v) for v in READABLE_DATASET_FORMATS)
         raise DatasetError(
             f"{manifest_path}: dataset format_version {version}, this software reads format_version "
-            f"{DATASET_FORMAT_VERSION} only; generate the dataset again with `msvdd-bench generate`"
+            f"{readable}; generate the dataset again with `msvdd-bench generate`"
         )
     if verify:
         verify_dataset(path, manifest, progress=progress)

@@ -2,8 +2,10 @@
 
 A Trace is read by the audio stage, the dataset writer and the viewer. It carries the physics-rate
 wheel and body state, the 200 Hz IMU, contact and benign-transient events, the fault schedule with the
-frequencies the audio stage needs, and per-IMU-sample labels. `Trace.save` / `Trace.load` round-trip it
-through one `.npz` file bit for bit.
+frequencies the audio stage needs, and per-IMU-sample labels. `Trace.save` writes one `.npz` file that
+keeps each array at its stated precision (`sim.trace_storage`: float32 signals; time stamps, wheel angles
+and microphone positions derived); `Trace.load` reads it back as exactly `trace.at_storage_precision()`, and
+reads format-1 files (every array float64) too.
 """
 
 from __future__ import annotations
@@ -18,8 +20,16 @@ from typing import Any
 
 import numpy as np
 
-TRACE_FORMAT_VERSION = 1
-"""Bumped whenever a field is added, removed or changes meaning."""
+from sim import trace_storage
+
+TRACE_FORMAT_VERSION = 2
+"""Bumped whenever a field is added, removed or changes meaning, or the file keeps it differently.
+
+2: the sampled signals are float32; time stamps, wheel angles and microphone positions are derived when they
+follow the simulator's laws (`sim.trace_storage`).
+"""
+READABLE_TRACE_FORMATS: tuple[int, ...] = (1, 2)
+"""Trace format versions `Trace.load` reads."""
 
 
 class TraceError(ValueError):
@@ -224,10 +234,24 @@ class Trace:
                 bad.append(key)
         return bad
 
+    def at_storage_precision(self) -> Trace:
+        """This trace as `save` then `load` give it back: signals rounded to float32, derived fields derived.
+
+        Render audio from this, not from the simulator's trace, and a re-render from the file is identical.
+        """
+        stored = trace_storage.decode(self._stored_arrays(), TRACE_FORMAT_VERSION)
+        return typing.cast(Trace, _unflatten(Trace, stored, ""))
+
+    def _stored_arrays(self) -> dict[str, np.ndarray]:
+        arrays = trace_storage.encode(_flatten(self))
+        arrays["format_version"] = np.asarray(TRACE_FORMAT_VERSION, dtype=np.int64)
+        return arrays
+
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the trace to one compressed `.npz` file, atomically (temp file, then rename)."""
+        """Write the trace to one compressed `.npz` file at its storage precision (`sim.trace_storage`),
+        atomically (temp file, then rename); the same trace always gives the same bytes."""
         target = Path(path)
-        arrays = _flatten(self)
+        arrays = self._stored_arrays()
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=".trace-", suffix=".npz", dir=target.parent)
         try:
@@ -241,7 +265,7 @@ class Trace:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Trace:
-        """Read a trace written by `save`; raises TraceError naming the file and what is wrong."""
+        """Read a trace written by `save` (format 1 or 2); raises TraceError naming the file and the fault."""
         source = Path(path)
         if not source.is_file():
             raise TraceNotFoundError(f"trace file not found: {source}")
@@ -251,14 +275,15 @@ class Trace:
         except (OSError, ValueError) as exc:
             raise TraceError(f"{source}: not a readable trace .npz ({exc})") from exc
         version = int(arrays.get("format_version", np.asarray(-1)))
-        if version != TRACE_FORMAT_VERSION:
-            raise TraceError(
-                f"{source}: trace format_version {version}, this software reads {TRACE_FORMAT_VERSION}"
-            )
+        if version not in READABLE_TRACE_FORMATS:
+            readable = " or ".join(str(v) for v in READABLE_TRACE_FORMATS)
+            raise TraceError(f"{source}: trace format_version {version}, this software reads {readable}")
         try:
-            return typing.cast(Trace, _unflatten(cls, arrays, ""))
+            return typing.cast(Trace, _unflatten(cls, trace_storage.decode(arrays, version), ""))
         except KeyError as exc:
             raise TraceError(f"{source}: missing field {exc.args[0]}") from exc
+        except ValueError as exc:
+            raise TraceError(f"{source}: malformed trace ({exc})") from exc
 
 
 def _flatten(obj: Any, prefix: str = "") -> dict[str, np.ndarray]:

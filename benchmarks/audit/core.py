@@ -116,8 +116,10 @@ class _Collected:
 
 
 def _kinematics(trace_path: Path, starts: np.ndarray) -> dict[str, np.ndarray]:
-    with np.load(trace_path, allow_pickle=False) as t:
-        quat, linvel, angvel = t["base_quat"], t["base_linvel"], t["base_angvel"]
+    with np.load(trace_path, allow_pickle=False) as t:  # the three signals only: faster than Trace.load
+        quat, linvel, angvel = (
+            np.asarray(t[k], dtype=np.float64) for k in ("base_quat", "base_linvel", "base_angvel")
+        )
         dt = float(t["physics_dt"])
     speed = signals.forward_speed(quat, linvel)
     # The first physics sample is at dt: pad one sample so index = time x rate.

@@ -8,10 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import soundfile as sf
 
 import benchmarks.dataset as ds
-from benchmarks.episode import EPISODE_FILES, read_episode
+import synth_audio
+from benchmarks.episode import EPISODE_AUDIO_BITS, EPISODE_FILES, read_episode
 from msvdd.contract import AUDIO_LEN, IMU_LEN
+from sim.trace import Trace, _flatten
+from synth_audio.io import quantise
 
 
 def test_layout_manifest_and_windows(tiny_dataset: Path) -> None:
@@ -55,6 +59,7 @@ def test_same_seed_same_checksums(tiny_dataset: Path, tmp_path: Path) -> None:
     second = json.loads((again / "manifest.json").read_text())
     assert first["episodes"] == second["episodes"]
     assert first["windows"] == second["windows"]
+    assert ds.dataset_fingerprint(first) == ds.dataset_fingerprint(second)
 
 
 def test_checksum_mismatch_is_named(tiny_dataset: Path, tmp_path: Path) -> None:
@@ -82,13 +87,13 @@ def test_missing_file_and_other_version_are_named(tiny_dataset: Path, tmp_path: 
 
 
 def test_a_format_1_dataset_is_refused_naming_both_versions(tiny_dataset: Path, tmp_path: Path) -> None:
-    assert ds.DATASET_FORMAT_VERSION == 2
+    assert ds.DATASET_FORMAT_VERSION == 3 and ds.READABLE_DATASET_FORMATS == (2, 3)
     copy = tmp_path / "old"
     copy.mkdir()
     manifest = json.loads((tiny_dataset / "manifest.json").read_text())
     manifest["format_version"] = 1  # the layout before SNR ranges
     (copy / "manifest.json").write_text(json.dumps(manifest))
-    with pytest.raises(ds.DatasetError, match=r"format_version 1, this software reads format_version 2"):
+    with pytest.raises(ds.DatasetError, match=r"format_version 1, this software reads format_version 2 or 3"):
         ds.open_dataset(copy, verify=False)
 
 
@@ -142,3 +147,60 @@ def test_a_dev_dataset_must_be_another_seed_of_the_same_preset(tiny_dataset: Pat
         check_dev(open_dataset(copy(seed, "tiny"), verify=False), evaluated)
     with pytest.raises(DatasetError, match=r"preset 'quick'.*'tiny'"):
         check_dev(open_dataset(copy(seed + 2, "quick"), verify=False), evaluated)
+
+
+def test_stored_audio_is_the_dithered_render_of_the_stored_trace(tiny_dataset: Path) -> None:
+    """Rendering an episode again from its trace.npz (as the audit does) gives its audio.flac back: the file
+    holds exactly the 16-bit TPDF quantisation of that render, dithered from the episode's seed, so it lies
+    within 1.5 steps (2^-15 of full scale) of it."""
+    dataset = ds.open_dataset(tiny_dataset, verify=False)
+    spec = next(s for s in dataset.episode_specs().values() if s.category == "collision")
+    folder = tiny_dataset / spec.episode_id
+    assert sf.info(str(folder / "audio.flac")).subtype == "PCM_16"
+    assert json.loads((folder / "meta.json").read_text())["audio_bits"] == EPISODE_AUDIO_BITS == 16
+    render = synth_audio.render(
+        Trace.load(folder / "trace.npz"), ds.episode_audio_config(spec), seed=spec.seed
+    )
+    stored = read_episode(folder).audio
+    step = 2.0**-15
+    np.testing.assert_array_equal(stored, (quantise(render.samples, 16, spec.seed) * step).astype(np.float32))
+    assert np.abs(stored.astype(np.float64) - render.samples).max() <= 1.5 * step
+
+
+def _to_format_2(dataset: Path, out: Path) -> Path:
+    """A copy of a dataset in the layout written before 16-bit audio: dataset format 2, episode format 1
+    (24-bit audio, every trace array float64 in trace format 1), checksums recomputed."""
+    shutil.copytree(dataset, out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["format_version"] = 2
+    for entry in manifest["episodes"]:
+        folder = out / entry["episode_id"]
+        synth_audio.write(folder / "audio.flac", synth_audio.read(folder / "audio.flac"))
+        arrays = _flatten(Trace.load(folder / "trace.npz"))
+        arrays["format_version"] = np.asarray(1)
+        with open(folder / "trace.npz", "wb") as handle:
+            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
+        meta = json.loads((folder / "meta.json").read_text())
+        meta["format_version"] = 1
+        del meta["audio_bits"]
+        (folder / "meta.json").write_text(json.dumps(meta))
+        entry["files"] = {name: ds.sha256_file(folder / name) for name in entry["files"]}
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    return out
+
+
+def test_a_dataset_of_the_previous_format_still_opens_and_loads(tiny_dataset: Path, tmp_path: Path) -> None:
+    """Datasets already on disk (format 2: 24-bit audio, float64 traces) verify, load the same windows and
+    give the same traces."""
+    old = _to_format_2(tiny_dataset, tmp_path / "old")
+    assert sf.info(str(next(old.glob("*/audio.flac")))).subtype == "PCM_24"
+    windows, rows = ds.open_dataset(old).load_windows("test")
+    expected, expected_rows = ds.open_dataset(tiny_dataset).load_windows("test")
+    assert rows == expected_rows
+    np.testing.assert_array_equal(windows.audio, expected.audio)
+    np.testing.assert_array_equal(windows.imu, expected.imu)
+    episode = read_episode(old / rows[0].episode)
+    assert episode.trace().format_version == 1
+    np.testing.assert_array_equal(
+        episode.trace().wheel_angle, read_episode(tiny_dataset / rows[0].episode).trace().wheel_angle
+    )

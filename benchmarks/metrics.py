@@ -279,45 +279,14 @@ def compute_metrics(
     Raises:
         ValueError: shapes differ, an unknown kind, or a test set without both normal and anomalous windows.
     """
-    s = np.asarray(scores, dtype=np.float64)
-    k = np.asarray(kinds).astype(str)
-    if k.shape != s.shape or s.ndim != 1:
-        raise ValueError(f"scores {s.shape} and kinds {k.shape} must be 1-D of the same length")
-    allowed = (NORMAL_KIND, COLLISION_KIND, MECHANICAL_KIND)
-    unknown = sorted(set(np.unique(k)) - set(allowed))
-    if unknown:
-        raise ValueError(f"unknown kinds {unknown}; allowed: {', '.join(allowed)}")
-    labels = (k != NORMAL_KIND).astype(int)
-    if labels.sum() == 0 or labels.sum() == labels.size:
-        raise ValueError(
-            f"the test set needs normal and anomalous windows; {int(labels.sum())} of {labels.size} anomalous"
-        )
+    s, k, labels = _test_set(scores, kinds)
     precision, recall, f1 = precision_recall_f1(labels, s, threshold)
     best_f1, best_t = f1_oracle(labels, s)
-    by_sub: dict[str, float] = {}
-    if sub_kinds is not None:
-        sk = np.asarray(sub_kinds).astype(str)
-        if sk.shape != s.shape:
-            raise ValueError(f"sub_kinds {sk.shape} must match scores {s.shape}")
-        for name in sorted(set(np.unique(sk[labels == 1]))):
-            by_sub[name] = auc_normal_vs(s, sk, name, kinds=k)
-    delays = np.zeros(0)
-    timing = (window_episode, window_start, event_episode, event_onset)
-    if any(t is not None for t in timing):
-        if any(t is None for t in timing):
-            raise ValueError(
-                "delays need window_episode, window_start, event_episode and event_onset together"
-            )
-        delays = detection_delays(
-            window_episode,  # type: ignore[arg-type]
-            window_start,  # type: ignore[arg-type]
-            s > threshold,
-            event_episode,  # type: ignore[arg-type]
-            event_onset,  # type: ignore[arg-type]
-            window_s=window_s,
-            max_delay_s=max_delay_s,
-        )
-    found = delays[np.isfinite(delays)]
+    by_sub = _auc_by_sub_kind(s, k, labels, sub_kinds)
+    delays = _timed_delays(
+        s > threshold, window_episode, window_start, event_episode, event_onset, window_s, max_delay_s
+    )
+    delay_mean, delay_median, detection_rate = _delay_summary(delays)
     return MethodMetrics(
         auc=roc_auc(labels, s),
         auc_collision=auc_normal_vs(s, k, COLLISION_KIND),
@@ -334,10 +303,79 @@ def compute_metrics(
         n_collision=int(np.sum(k == COLLISION_KIND)),
         n_mechanical=int(np.sum(k == MECHANICAL_KIND)),
         auc_by_sub_kind=by_sub,
-        delay_mean_s=float(found.mean()) if found.size else math.nan,
-        delay_median_s=float(np.median(found)) if found.size else math.nan,
-        detection_rate=float(found.size / delays.size) if delays.size else math.nan,
+        delay_mean_s=delay_mean,
+        delay_median_s=delay_median,
+        detection_rate=detection_rate,
         n_events=int(delays.size),
+    )
+
+
+def _test_set(
+    scores: np.ndarray | Sequence[float], kinds: np.ndarray | Sequence[str]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Scores (float64), kinds (str) and 0/1 labels of a test set, checked: 1-D, of one length, known
+    kinds, both normal and anomalous windows."""
+    s = np.asarray(scores, dtype=np.float64)
+    k = np.asarray(kinds).astype(str)
+    if k.shape != s.shape or s.ndim != 1:
+        raise ValueError(f"scores {s.shape} and kinds {k.shape} must be 1-D of the same length")
+    allowed = (NORMAL_KIND, COLLISION_KIND, MECHANICAL_KIND)
+    unknown = sorted(set(np.unique(k)) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown kinds {unknown}; allowed: {', '.join(allowed)}")
+    labels = (k != NORMAL_KIND).astype(int)
+    if labels.sum() == 0 or labels.sum() == labels.size:
+        raise ValueError(
+            f"the test set needs normal and anomalous windows; {int(labels.sum())} of {labels.size} anomalous"
+        )
+    return s, k, labels
+
+
+def _auc_by_sub_kind(
+    s: np.ndarray, k: np.ndarray, labels: np.ndarray, sub_kinds: np.ndarray | Sequence[str] | None
+) -> dict[str, float]:
+    """ROC-AUC of normal against each anomalous sub-kind present, by name (empty without sub-kinds)."""
+    if sub_kinds is None:
+        return {}
+    sk = np.asarray(sub_kinds).astype(str)
+    if sk.shape != s.shape:
+        raise ValueError(f"sub_kinds {sk.shape} must match scores {s.shape}")
+    return {name: auc_normal_vs(s, sk, name, kinds=k) for name in sorted(set(np.unique(sk[labels == 1])))}
+
+
+def _timed_delays(
+    flags: np.ndarray,
+    window_episode: np.ndarray | Sequence[Any] | None,
+    window_start: np.ndarray | Sequence[float] | None,
+    event_episode: np.ndarray | Sequence[Any] | None,
+    event_onset: np.ndarray | Sequence[float] | None,
+    window_s: float,
+    max_delay_s: float,
+) -> np.ndarray:
+    """`detection_delays` of the flagged windows; empty when no timing is given, refused when only part is."""
+    timing = (window_episode, window_start, event_episode, event_onset)
+    if all(t is None for t in timing):
+        return np.zeros(0)
+    if window_episode is None or window_start is None or event_episode is None or event_onset is None:
+        raise ValueError("delays need window_episode, window_start, event_episode and event_onset together")
+    return detection_delays(
+        window_episode,
+        window_start,
+        flags,
+        event_episode,
+        event_onset,
+        window_s=window_s,
+        max_delay_s=max_delay_s,
+    )
+
+
+def _delay_summary(delays: np.ndarray) -> tuple[float, float, float]:
+    """Mean and median delay over the detected events, and the fraction detected (NaN where undefined)."""
+    found = delays[np.isfinite(delays)]
+    return (
+        float(found.mean()) if found.size else math.nan,
+        float(np.median(found)) if found.size else math.nan,
+        float(found.size / delays.size) if delays.size else math.nan,
     )
 
 

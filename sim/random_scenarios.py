@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -90,40 +91,78 @@ def _segment_clear(a: np.ndarray, b: np.ndarray, obstacles: list[Obstacle], marg
     return _clearance(_sample_segment(a, b, 0.1), obstacles) > margin
 
 
-def _check_args(
-    category: str,
-    duration: float,
-    environment: str | None,
-    obstacle_kind: str | None,
-    fault_kind: str | None,
-    wheel: int | None,
-    severity: tuple[float, float],
-    transient_density: float,
-    robot_model: str,
-) -> None:
+@dataclass(frozen=True)
+class ScenarioOptions:
+    """What `draw_scenario` draws a scenario with, besides its seed and category (None: drawn)."""
+
+    duration: float
+    """Episode length, s (2 .. 3600)."""
+    environment: str | None = None
+    """`indoor` or `outdoor`; None: drawn among the obstacle kind's environments (`OBSTACLE_ENVIRONMENTS`)."""
+    obstacle_kind: str | None = None
+    """Obstacle kind a collision episode hits (`sim.vocab.OBSTACLE_KINDS`); None: drawn."""
+    fault_kind: str | None = None
+    """Fault kind of a fault episode (`sim.vocab.FAULT_KINDS`); None: drawn."""
+    wheel: int | None = None
+    """Faulty wheel of a fault episode; None: drawn."""
+    severity: tuple[float, float] = (0.3, 1.0)
+    """(low, high) range the fault severity is drawn from, 0 .. 1."""
+    unit_id: int | None = None
+    """Robot unit; None: drawn among 0 .. 7."""
+    transient_density: float = 1.0
+    """Benign transients per 8 s of driving (0 = none, at most 10)."""
+    robot_model: str = "skid4"
+    """`skid4` or `diff2`."""
+    surface: str | None = None
+    """Floor surface, one of the environment's (`sim.vocab.INDOOR_SURFACES`, `OUTDOOR_SURFACES`; needs an
+    `environment`); None: drawn."""
+
+
+def _check_options(seed: int, category: str, options: ScenarioOptions) -> None:
+    """Raise ScenarioError naming the first argument that is invalid (before anything is drawn)."""
+
     def bad(name: str, value: object, allowed: str) -> ScenarioError:
         return ScenarioError(f"{name} = {value!r} is invalid; allowed: {allowed}")
 
+    o = options
     if category not in CATEGORIES:
         raise bad("category", category, ", ".join(CATEGORIES))
-    if not (isinstance(duration, int | float) and math.isfinite(duration) and 2.0 <= duration <= 3600.0):
-        raise bad("duration", duration, "2 .. 3600 s")
-    if environment is not None and environment not in vocab.ENVIRONMENTS:
-        raise bad("environment", environment, ", ".join(vocab.ENVIRONMENTS))
-    if obstacle_kind is not None and obstacle_kind not in vocab.OBSTACLE_KINDS:
-        raise bad("obstacle_kind", obstacle_kind, ", ".join(vocab.OBSTACLE_KINDS))
-    if fault_kind is not None and fault_kind not in vocab.FAULT_KINDS:
-        raise bad("fault_kind", fault_kind, ", ".join(vocab.FAULT_KINDS))
-    if robot_model not in ("skid4", "diff2"):
-        raise bad("robot_model", robot_model, "skid4, diff2")
-    n_wheels = len(wheel_names(robot_model))
-    if wheel is not None and (not isinstance(wheel, int) or not 0 <= wheel < n_wheels):
-        raise bad("wheel", wheel, f"0 .. {n_wheels - 1} for {robot_model}")
-    lo, hi = severity
+    if not (
+        isinstance(o.duration, int | float) and math.isfinite(o.duration) and 2.0 <= o.duration <= 3600.0
+    ):
+        raise bad("duration", o.duration, "2 .. 3600 s")
+    if o.environment is not None and o.environment not in vocab.ENVIRONMENTS:
+        raise bad("environment", o.environment, ", ".join(vocab.ENVIRONMENTS))
+    if o.obstacle_kind is not None and o.obstacle_kind not in vocab.OBSTACLE_KINDS:
+        raise bad("obstacle_kind", o.obstacle_kind, ", ".join(vocab.OBSTACLE_KINDS))
+    if o.fault_kind is not None and o.fault_kind not in vocab.FAULT_KINDS:
+        raise bad("fault_kind", o.fault_kind, ", ".join(vocab.FAULT_KINDS))
+    if o.robot_model not in ("skid4", "diff2"):
+        raise bad("robot_model", o.robot_model, "skid4, diff2")
+    n_wheels = len(wheel_names(o.robot_model))
+    if o.wheel is not None and (not isinstance(o.wheel, int) or not 0 <= o.wheel < n_wheels):
+        raise bad("wheel", o.wheel, f"0 .. {n_wheels - 1} for {o.robot_model}")
+    lo, hi = o.severity
     if not (0.0 <= lo <= hi <= 1.0):
-        raise bad("severity", severity, "(low, high) with 0 <= low <= high <= 1")
-    if not (math.isfinite(transient_density) and 0.0 <= transient_density <= 10.0):
-        raise bad("transient_density", transient_density, "0 .. 10")
+        raise bad("severity", o.severity, "(low, high) with 0 <= low <= high <= 1")
+    if not (math.isfinite(o.transient_density) and 0.0 <= o.transient_density <= 10.0):
+        raise bad("transient_density", o.transient_density, "0 .. 10")
+    _check_surface(o.surface, o.environment)
+    if not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"seed = {seed!r} is invalid; allowed: an integer >= 0")
+
+
+def _check_surface(surface: str | None, environment: str | None) -> None:
+    """Refuse a surface given without an environment, or not of its environment."""
+    if surface is None:
+        return
+    if environment is None:
+        raise ScenarioError(f"surface = {surface!r} needs an environment; allowed: indoor, outdoor")
+    allowed = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
+    if surface not in allowed:
+        raise ScenarioError(
+            f"surface = {surface!r} is invalid for environment {environment!r}; allowed: {', '.join(allowed)}"
+        )
 
 
 def random_scenario(
@@ -142,6 +181,8 @@ def random_scenario(
     surface: str | None = None,
 ) -> Scenario:
     """A valid randomised scenario of a category; every draw depends only on the arguments.
+
+    The same as `draw_scenario(seed, category, ScenarioOptions(duration, ...))`.
 
     Args:
         seed: seed of every draw (also the scenario's seed).
@@ -162,32 +203,84 @@ def random_scenario(
         surface: floor surface (random among the environment's when None); must belong to the
             environment (`sim.vocab.INDOOR_SURFACES`, `OUTDOOR_SURFACES`).
     """
-    _check_args(
-        category,
-        duration,
-        environment,
-        obstacle_kind,
-        fault_kind,
-        wheel,
-        severity,
-        transient_density,
-        robot_model,
+    options = ScenarioOptions(
+        duration=duration,
+        environment=environment,
+        obstacle_kind=obstacle_kind,
+        fault_kind=fault_kind,
+        wheel=wheel,
+        severity=severity,
+        unit_id=unit_id,
+        transient_density=transient_density,
+        robot_model=robot_model,
+        surface=surface,
     )
-    if surface is not None and environment is None:
-        raise ScenarioError(f"surface = {surface!r} needs an environment; allowed: indoor, outdoor")
-    if surface is not None:
-        allowed = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
-        if surface not in allowed:
-            raise ScenarioError(
-                f"surface = {surface!r} is invalid for environment {environment!r}; "
-                f"allowed: {', '.join(allowed)}"
-            )
-    if not isinstance(seed, int) or seed < 0:
-        raise ScenarioError(f"seed = {seed!r} is invalid; allowed: an integer >= 0")
+    return draw_scenario(seed, category, options)
+
+
+def draw_scenario(seed: int, category: str, options: ScenarioOptions) -> Scenario:
+    """A valid randomised scenario of a category (see `random_scenario`) drawn with `options`.
+
+    The draws come in a fixed order from one generator seeded by the seed and category: the setting
+    (obstacle kind, environment, surface, arena, unit), the obstacles, the route and the robot's driving,
+    the transients, then the fault.
+    """
+    _check_options(seed, category, options)
     rng = np.random.default_rng([seed, CATEGORIES.index(category), 0x5CE])
+    setting = _draw_setting(rng, category, options)
+    obstacles = _draw_obstacles(rng, category, setting)
+    waypoints, start = _route_with_retries(rng, category, obstacles, setting.arena, options.duration)
+    route = Route(
+        start=start,
+        waypoints=tuple(waypoints),
+        accel=float(rng.uniform(0.5, 1.2)),
+        yaw_rate=float(rng.uniform(0.8, 1.5)),
+        loop=True,
+        reflex=_reflex(rng),
+    )
+    transients = _transients(
+        rng, setting.environment, setting.arena, start, waypoints, options.duration, options.transient_density
+    )
+    faults = _draw_faults(rng, category, options)
+    return Scenario(
+        name=_scenario_name(category, setting, faults),
+        seed=seed,
+        duration=float(options.duration),
+        environment=setting.environment,
+        surface=setting.surface,
+        arena=setting.arena,
+        robot=setting.unit,
+        route=route,
+        obstacles=tuple(obstacles),
+        transients=transients,
+        faults=faults,
+        category=category,
+    )
+
+
+@dataclass(frozen=True)
+class _Setting:
+    """Where a scenario happens and with which robot: drawn first, before any obstacle."""
+
+    obstacle_kind: str | None
+    """The obstacle a collision episode hits (None for the other categories unless given)."""
+    environment: str
+    """`indoor` or `outdoor`."""
+    surface: str
+    """Floor surface."""
+    arena: tuple[float, float]
+    """Half extents of the arena, m."""
+    unit: Unit
+    """The robot."""
+
+
+def _draw_setting(rng: np.random.Generator, category: str, options: ScenarioOptions) -> _Setting:
+    """Draw what the options leave open of the obstacle kind, environment, surface and unit, and the arena."""
+    obstacle_kind = options.obstacle_kind
     if category == "collision" and obstacle_kind is None:
         obstacle_kind = str(rng.choice(vocab.OBSTACLE_KINDS))
     where = OBSTACLE_ENVIRONMENTS.get(obstacle_kind or "", vocab.ENVIRONMENTS)
+    environment = options.environment
     if environment is None:
         environment = str(rng.choice(where))
     elif category == "collision" and environment not in where:
@@ -197,68 +290,76 @@ def random_scenario(
         )
     surfaces = vocab.INDOOR_SURFACES if environment == "indoor" else vocab.OUTDOOR_SURFACES
     drawn = str(rng.choice(surfaces))  # drawn even when given, so the other draws stay the same
-    surface = drawn if surface is None else surface
     if environment == "indoor":
         arena = (float(rng.uniform(5.0, 7.5)), float(rng.uniform(4.0, 5.5)))
     else:
         arena = (float(rng.uniform(8.0, 12.0)), float(rng.uniform(6.5, 9.0)))
-    unit = Unit(model=robot_model, unit_id=int(rng.integers(0, 8)) if unit_id is None else unit_id)
+    unit_id = int(rng.integers(0, 8)) if options.unit_id is None else options.unit_id
+    return _Setting(
+        obstacle_kind=obstacle_kind,
+        environment=environment,
+        surface=drawn if options.surface is None else options.surface,
+        arena=arena,
+        unit=Unit(model=options.robot_model, unit_id=unit_id),
+    )
 
+
+def _draw_obstacles(rng: np.random.Generator, category: str, setting: _Setting) -> list[Obstacle]:
+    """A collision episode's target (obstacle 0), then 3-6 pieces of the environment's clutter (those
+    that fit)."""
     obstacles: list[Obstacle] = []
     if category == "collision":
-        assert obstacle_kind is not None
-        _place(rng, obstacle_kind, arena, obstacles, target=True)
+        assert setting.obstacle_kind is not None
+        _place(rng, setting.obstacle_kind, setting.arena, obstacles, target=True)
         if not obstacles:
             raise ScenarioError(
-                f"obstacle_kind = {obstacle_kind!r}: could not be placed in the arena {arena}"
+                f"obstacle_kind = {setting.obstacle_kind!r}: could not be placed in the arena {setting.arena}"
             )
-    for kind in rng.choice(_CLUTTER[environment], size=int(rng.integers(3, 7))):
-        _place(rng, str(kind), arena, obstacles, target=False)
+    for kind in rng.choice(_CLUTTER[setting.environment], size=int(rng.integers(3, 7))):
+        _place(rng, str(kind), setting.arena, obstacles, target=False)
+    return obstacles
 
+
+def _route_with_retries(
+    rng: np.random.Generator,
+    category: str,
+    obstacles: list[Obstacle],
+    arena: tuple[float, float],
+    duration: float,
+) -> tuple[list[Waypoint], tuple[float, float, float]]:
+    """`_route`, dropping the last clutter obstacle from `obstacles` (in place) and drawing again while
+    the arena is too crowded for a route."""
     for _ in range(8):
         try:
-            waypoints, start = _route(rng, category, obstacles, arena, duration)
-            break
+            return _route(rng, category, obstacles, arena, duration)
         except ScenarioError:
             if len(obstacles) <= (1 if category == "collision" else 0):
                 raise
             obstacles.pop()  # crowded: drop the last clutter obstacle and draw again
-    else:
-        waypoints, start = _route(rng, category, obstacles, arena, duration)
-    route = Route(
-        start=start,
-        waypoints=tuple(waypoints),
-        accel=float(rng.uniform(0.5, 1.2)),
-        yaw_rate=float(rng.uniform(0.8, 1.5)),
-        loop=True,
-        reflex=_reflex(rng),
-    )
-    transients = _transients(rng, environment, arena, start, waypoints, duration, transient_density)
-    faults: tuple[Fault, ...] = ()
-    if category == "fault":
-        kind = fault_kind if fault_kind is not None else str(rng.choice(vocab.FAULT_KINDS))
-        n_wheels = len(wheel_names(robot_model))
-        which = wheel if wheel is not None else int(rng.integers(0, n_wheels))
-        sev = float(rng.uniform(severity[0], severity[1]))
-        onset = float(rng.uniform(0.15, 0.5) * duration)
-        faults = (Fault(kind=kind, wheel=which, severity=sev, onset=onset),)
-    name = f"{category}_{environment}" + (f"_{obstacle_kind}" if category == "collision" else "")
+    return _route(rng, category, obstacles, arena, duration)
+
+
+def _draw_faults(rng: np.random.Generator, category: str, options: ScenarioOptions) -> tuple[Fault, ...]:
+    """A fault episode's one fault (what the options leave open drawn; onset at 15-50 % of the episode);
+    none for the other categories."""
+    if category != "fault":
+        return ()
+    kind = options.fault_kind if options.fault_kind is not None else str(rng.choice(vocab.FAULT_KINDS))
+    n_wheels = len(wheel_names(options.robot_model))
+    which = options.wheel if options.wheel is not None else int(rng.integers(0, n_wheels))
+    sev = float(rng.uniform(options.severity[0], options.severity[1]))
+    onset = float(rng.uniform(0.15, 0.5) * options.duration)
+    return (Fault(kind=kind, wheel=which, severity=sev, onset=onset),)
+
+
+def _scenario_name(category: str, setting: _Setting, faults: tuple[Fault, ...]) -> str:
+    """`<category>_<environment>`, then the obstacle kind of a collision, or the fault kind and wheel."""
+    name = f"{category}_{setting.environment}"
+    if category == "collision":
+        name += f"_{setting.obstacle_kind}"
     if faults:
         name += f"_{faults[0].kind}_w{faults[0].wheel}"
-    return Scenario(
-        name=name,
-        seed=seed,
-        duration=float(duration),
-        environment=environment,
-        surface=surface,
-        arena=arena,
-        robot=unit,
-        route=route,
-        obstacles=tuple(obstacles),
-        transients=transients,
-        faults=faults,
-        category=category,
-    )
+    return name
 
 
 def _place(

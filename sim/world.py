@@ -122,30 +122,63 @@ def build_world(scenario: Scenario) -> World:
     """Build and compile the scenario's world."""
     robot = build_robot(scenario.robot)
     arena = _arena(scenario)
-    surface = SURFACES[scenario.surface]
-    hfield_data = _add_floor(arena, scenario, surface)
+    hfield_data = _add_floor(arena, scenario, SURFACES[scenario.surface])
     obstacles = list(scenario.obstacles) + _border_walls(scenario)
     obstacle_bodies = [_add_obstacle(arena, i, ob) for i, ob in enumerate(obstacles)]
     if hfield_data is not None:
-        # Free obstacles rest on a flat collision plane, not on the heightfield (box-heightfield
-        # contacts are many and costly); the robot touches the heightfield and the obstacles.
-        for i, ob in enumerate(obstacles):
-            if ob.kind in OBSTACLE_MASS:
-                for geom in obstacle_bodies[i].find_all("geom"):
-                    geom.contype, geom.conaffinity = _FREE_OBSTACLE_BITS
-        for geom in robot.model.find_all("geom"):
-            if geom.dclass is None or geom.dclass.dclass != "visual":
-                geom.conaffinity = _ROBOT_AFFINITY
+        _keep_obstacles_off_heightfield(robot, obstacles, obstacle_bodies)
+    transients = _add_transients(arena, scenario)
+    _attach_robot(arena, robot, scenario.route.start)
+    _add_sensors(arena, robot, obstacle_bodies, transients)
+    model = mujoco.MjModel.from_xml_string(arena.to_xml_string(), arena.get_assets())
+    if hfield_data is not None:
+        model.hfield_data[:] = hfield_data
+    w = len(robot.info.wheel_names)
+    slices = _sensor_slices(w, len(obstacles))
+    if model.nsensordata != slices.transient_contact + 7 * w:
+        raise RuntimeError(f"sensor layout mismatch: {model.nsensordata} values")
+    return _world(model, robot, scenario, obstacles, slices)
+
+
+def _keep_obstacles_off_heightfield(
+    robot: BuiltRobot, obstacles: list[Obstacle], obstacle_bodies: list[mjcf.Element]
+) -> None:
+    """Collision bits on a rough floor: free obstacles rest on a flat collision plane, not on the
+    heightfield (box-heightfield contacts are many and costly); the robot touches the heightfield and the
+    obstacles."""
+    for ob, body in zip(obstacles, obstacle_bodies, strict=True):
+        if ob.kind in OBSTACLE_MASS:
+            for geom in body.find_all("geom"):
+                geom.contype, geom.conaffinity = _FREE_OBSTACLE_BITS
+    for geom in robot.model.find_all("geom"):
+        if geom.dclass is None or geom.dclass.dclass != "visual":
+            geom.conaffinity = _ROBOT_AFFINITY
+
+
+def _add_transients(arena: mjcf.RootElement, scenario: Scenario) -> mjcf.Element:
+    """The `transients` body holding every transient's geom (a site keeps it when there are none)."""
     transients = arena.worldbody.add("body", name="transients")
     for i, tr in enumerate(scenario.transients):
         _add_transient(transients, i, tr.kind, tr.x, tr.y, tr.yaw, tr.length)
     if not scenario.transients:
         transients.add("site", name="transients_empty", pos=[0, 0, -1])
-    x0, y0, yaw0 = scenario.route.start
+    return transients
+
+
+def _attach_robot(arena: mjcf.RootElement, robot: BuiltRobot, start: tuple[float, float, float]) -> None:
+    """Attach the robot on a free joint at the route's start pose (x, y, yaw), its wheels just above the
+    floor."""
+    x0, y0, yaw0 = start
     frame = arena.attach(robot.model)
     frame.pos = [x0, y0, float(robot.info.wheel_radius.mean()) + 0.002]
     frame.quat = [np.cos(yaw0 / 2), 0.0, 0.0, np.sin(yaw0 / 2)]
     frame.add("freejoint", name="root")
+
+
+def _add_sensors(
+    arena: mjcf.RootElement, robot: BuiltRobot, obstacle_bodies: list[mjcf.Element], transients: mjcf.Element
+) -> None:
+    """Every sensor, in the order `_sensor_slices` lays out: wheels, base, IMU, mics, obstacles, contacts."""
     base = robot.model.find("body", "base")
     wheels = robot.info.wheel_names
     sensor = arena.sensor
@@ -176,26 +209,52 @@ def build_world(scenario: Scenario) -> World:
             "contact", name=f"bump_{name}", geom1=robot.model.find("geom", name), body2=transients,
             data="found force pos", reduce="netforce", num=1,
         )  # fmt: skip
-    xml = arena.to_xml_string()
-    model = mujoco.MjModel.from_xml_string(xml, arena.get_assets())
-    if hfield_data is not None:
-        model.hfield_data[:] = hfield_data
-    w = len(wheels)
-    k = len(obstacles)
-    slices = SensorSlices(
+
+
+def _sensor_slices(w: int, k: int) -> SensorSlices:
+    """Offsets of `_add_sensors`'s sensors for `w` wheels and `k` obstacles."""
+    return SensorSlices(
         wheel_angle=0, wheel_speed=w, wheel_torque=2 * w, base_pos=3 * w, base_quat=3 * w + 3,
         base_linvel=3 * w + 7, base_angvel=3 * w + 10, acc=3 * w + 13, vel=3 * w + 16, mic=3 * w + 19,
         obstacle_pos=3 * w + 25, obstacle_contact=3 * w + 25 + 3 * k, transient_contact=3 * w + 25 + 10 * k,
     )  # fmt: skip
-    if model.nsensordata != slices.transient_contact + 7 * w:
-        raise RuntimeError(f"sensor layout mismatch: {model.nsensordata} values")
+
+
+def _world(
+    model: mujoco.MjModel,
+    robot: BuiltRobot,
+    scenario: Scenario,
+    obstacles: list[Obstacle],
+    slices: SensorSlices,
+) -> World:
+    """The World of a compiled model: ids of the robot's bodies and dofs, obstacle tables, the robot's
+    compiled mass."""
     prefix = robot.model.model + "/"
+    wheels = robot.info.wheel_names
     base_id = model.body(prefix + "base").id
-    wheel_body = np.array([model.body(f"{prefix}wheel_{n}").id for n in wheels])
-    wheel_dof = np.array([model.jnt_dofadr[model.joint(prefix + n).id] for n in wheels])
-    ob_body = np.array([model.body(f"obstacle_{i}").id for i in range(k)])
+    ob_body = np.array([model.body(f"obstacle_{i}").id for i in range(len(obstacles))])
     info = dataclasses.replace(robot.info, mass=float(model.body_subtreemass[base_id]))
-    records = tuple(
+    return World(
+        model=model,
+        robot=dataclasses.replace(robot, info=info),
+        sensors=slices,
+        n_wheels=len(wheels),
+        wheel_body=np.array([model.body(f"{prefix}wheel_{n}").id for n in wheels]),
+        wheel_dof=np.array([model.jnt_dofadr[model.joint(prefix + n).id] for n in wheels]),
+        base_body=int(base_id),
+        root_dof=int(model.jnt_dofadr[model.joint(prefix + "root/").id]),
+        obstacles=_obstacle_records(obstacles),
+        obstacle_body=ob_body,
+        obstacle_mocap=np.asarray(model.body_mocapid[ob_body], dtype=np.int64),
+        obstacle_free=np.array([ob.kind in OBSTACLE_MASS for ob in obstacles], dtype=bool),
+        transient_height=np.array([TRANSIENT_HEIGHT[t.kind] for t in scenario.transients]),
+        bumper_reach=_bumper_reach(model, prefix),
+    )
+
+
+def _obstacle_records(obstacles: list[Obstacle]) -> tuple[ObstacleRecord, ...]:
+    """What the trace records of each obstacle (position at its centre height)."""
+    return tuple(
         ObstacleRecord(
             kind=ob.kind,
             material=ob.material,
@@ -204,22 +263,6 @@ def build_world(scenario: Scenario) -> World:
             yaw=float(ob.yaw),
         )
         for ob in obstacles
-    )
-    return World(
-        model=model,
-        robot=dataclasses.replace(robot, info=info),
-        sensors=slices,
-        n_wheels=w,
-        wheel_body=wheel_body,
-        wheel_dof=wheel_dof,
-        base_body=int(base_id),
-        root_dof=int(model.jnt_dofadr[model.joint(prefix + "root/").id]),
-        obstacles=records,
-        obstacle_body=ob_body,
-        obstacle_mocap=np.asarray(model.body_mocapid[ob_body], dtype=np.int64),
-        obstacle_free=np.array([ob.kind in OBSTACLE_MASS for ob in obstacles], dtype=bool),
-        transient_height=np.array([TRANSIENT_HEIGHT[t.kind] for t in scenario.transients]),
-        bumper_reach=_bumper_reach(model, prefix),
     )
 
 

@@ -197,9 +197,7 @@ def reference_rms(robot: RobotInfo, config: AudioConfig) -> float:
     torque = np.full((t.size, w), reference_torque(robot))
     drive = build_drive(robot, t, angle, speed, torque, n, sr)
     buses = _robot_buses(drive, _REFERENCE_SURFACE, 0, None)
-    delays, gains = point_gains(
-        _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
-    )
+    delays, gains = _robot_gains(robot, config)
     value = rms(_spatialize(buses["motor"] + buses["rolling"], delays, gains))
     if not value > 0:
         raise AudioError(
@@ -235,10 +233,7 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     Raises:
         AudioError: the trace or config cannot be rendered (the message names the problem).
     """
-    config = config if config is not None else AudioConfig()
-    if not isinstance(config, AudioConfig):
-        raise AudioError(f"config must be a synth_audio.AudioConfig, got {type(config).__name__}")
-    config.validate()
+    config = _checked_config(config)
     seed = check_seed(seed)
     check_trace(trace)
     sr = config.sample_rate
@@ -246,103 +241,220 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     robot = trace.robot
     drive = build_drive(robot, trace.time, trace.wheel_angle, trace.wheel_speed, trace.wheel_torque, n, sr)
     scale = 10.0 ** (config.reference_level_dbfs / 20.0) / reference_rms(robot, config)
-    gains_db = {
+    # Stems in this order: the mix adds them in it, and the room's send is the sum of those before it.
+    stems = _robot_stems(trace, drive, config, seed, scale)
+    if "impacts" not in config.muted and (len(trace.contacts.material) or config.stems):
+        stems["impacts"] = _impact_stem(trace, config, seed, scale)
+    room = _room(trace, config, seed, n)
+    room_gain = 10.0 ** (config.room_send_db / 20.0)
+    near = _nearfield(trace, config, seed, n, room_gain, room is not None)
+    room_spectrum = None
+    if room is not None:
+        room_spectrum = _room_send(room, stems, near, room_gain, n, config.stems)
+    if near is not None:
+        stems["nearfield"] = near[0]
+    if config.ambience:
+        stems["ambience"] = _ambience(trace, config, seed, n, room, room_spectrum)
+    if room is not None and room_spectrum is not None:
+        stems["room"] = room.wet(room_spectrum)
+    if math.isfinite(config.mic_noise_dbfs):
+        stems["mic_noise"] = _mic_noise(config, seed, n)
+    return _mixdown(stems, config, n)
+
+
+def _checked_config(config: AudioConfig | None) -> AudioConfig:
+    """The config (the default one when None); AudioError unless it is a valid `AudioConfig`."""
+    config = config if config is not None else AudioConfig()
+    if not isinstance(config, AudioConfig):
+        raise AudioError(f"config must be a synth_audio.AudioConfig, got {type(config).__name__}")
+    config.validate()
+    return config
+
+
+def _robot_gains(robot: RobotInfo, config: AudioConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Delays and gains (W + 1, 2) from the wheel and chassis buses (`_body_sources`) to the two mics."""
+    return point_gains(
+        _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), config.sample_rate,
+        config.speed_of_sound,
+    )  # fmt: skip
+
+
+def _bus_gains_db(config: AudioConfig) -> dict[str, float]:
+    """Gain of each robot bus of `_robot_buses`, dB (the fan has none: its level is `FAN_DB`)."""
+    return {
         "motor": config.gain_motor_db,
         "rolling": config.gain_rolling_db,
         "transients": config.gain_transients_db,
         "faults": config.gain_faults_db,
         "electronics": 0.0,
     }
-    merged = not config.stems and all(g == 0.0 for g in gains_db.values())
-    delays, gains = point_gains(
-        _body_sources(robot), robot.mic_pos_body, mic_axes(robot.mic_pos_body), sr, config.speed_of_sound
-    )
-    # The fan's RMS at the mics is FAN_DB re the reference drive: raw level x chassis gain x scale.
+
+
+def _fan_level(robot: RobotInfo, config: AudioConfig, gains: np.ndarray) -> float:
+    """Raw RMS of the fan on the chassis bus, so that at the mics (x chassis gain x scale) it is `FAN_DB`
+    re the reference drive."""
     chassis_gain = float(np.sqrt(np.mean(np.square(gains[-1]))))
-    fan_level = 10.0 ** (FAN_DB / 20.0) * reference_rms(robot, config) / max(chassis_gain, 1e-12)
+    return 10.0 ** (FAN_DB / 20.0) * reference_rms(robot, config) / max(chassis_gain, 1e-12)
+
+
+def _robot_stems(
+    trace: Trace, drive: Drive, config: AudioConfig, seed: int, scale: float
+) -> dict[str, np.ndarray]:
+    """The robot's own sound at the mics, (2, n) each, times `scale` and each bus's gain.
+
+    With `config.stems`, one stem per bus (source group); otherwise one `robot` stem. When no bus has a
+    gain, the buses are accumulated into one array as they are made (`merged`), so one is spatialised;
+    otherwise their gain-weighted sum is.
+    """
+    gains_db = _bus_gains_db(config)
+    merged = not config.stems and all(g == 0.0 for g in gains_db.values())
+    delays, gains = _robot_gains(trace.robot, config)
+    fan_level = _fan_level(trace.robot, config, gains)
     buses = _robot_buses(drive, trace.surface, seed, trace, merged, config.muted, fan_level)
-    stems: dict[str, np.ndarray] = {}
     if config.stems:
-        for name, bus in buses.items():
-            stems[name] = _spatialize(bus, delays, gains) * np.float32(
-                scale * 10.0 ** (gains_db[name] / 20.0)
-            )
-    elif merged:
-        stems["robot"] = _spatialize(buses["motor"], delays, gains)
-        stems["robot"] *= np.float32(scale)
-    else:
-        total = np.zeros_like(buses["motor"])
-        for name, bus in buses.items():
-            total += bus * np.float32(10.0 ** (gains_db[name] / 20.0))
-        stems["robot"] = _spatialize(total, delays, gains)
-        stems["robot"] *= np.float32(scale)
-    if "impacts" not in config.muted and (len(trace.contacts.material) or config.stems):
-        impacts = _impacts(trace, sr, seed, config.speed_of_sound)
-        impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
-        stems["impacts"] = impacts
-    indoor = trace.environment == "indoor"
-    reverb = indoor and config.rt60_s > 0
-    room = Room(config.rt60_s, sr, n, _rng(seed, "room")) if reverb else None
-    room_gain = 10.0 ** (config.room_send_db / 20.0)
-    near = near_send = None
-    if config.ambience and config.nearfield_rate_hz > 0:
-        listener = nf.Listener(np.asarray(trace.time, dtype=np.float64), np.asarray(trace.mic_pos))
-        near, near_send = nf.render_nearfield(
-            listener, trace.environment, trace.surface, n, config, _rng(seed, "nearfield"), room is not None
-        )
-        near_send *= np.float32(room_gain / REF_DISTANCE)  # send per source power (see synth_audio.nearfield)
-    room_spectrum = None
-    if room is not None:
-        dry = np.zeros(n, dtype=np.float32)
-        for part in stems.values():
-            dry += part[0]
-            dry += part[1]
-        dry *= np.float32(0.5 * room_gain)
-        if near is not None and near_send is not None and near_send.size:
-            if config.stems:  # the near-field events' reverberation belongs to their own stem
-                near += room.apply(near_send)
-            else:  # one inverse FFT for every reverberation
-                dry += near_send
-        room_spectrum = room.send_spectrum(dry)
-    if near is not None:
-        stems["nearfield"] = near
-    if config.ambience:
-        scene = amb.Scene(
-            n, sr, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),
-            config.speed_of_sound, _world_to_body(trace),
-        )  # fmt: skip
-        env_rng = _rng(seed, "ambience")
-        if indoor:
-            env, env_send = amb.indoor(scene, env_rng, config.door_rate_hz, DECIMATION)
+        return {
+            name: _spatialize(bus, delays, gains) * np.float32(scale * 10.0 ** (gains_db[name] / 20.0))
+            for name, bus in buses.items()
+        }
+    robot = _spatialize(buses["motor"] if merged else _weighted_sum(buses, gains_db), delays, gains)
+    robot *= np.float32(scale)
+    return {"robot": robot}
+
+
+def _weighted_sum(buses: dict[str, np.ndarray], gains_db: dict[str, float]) -> np.ndarray:
+    """Sum of the buses, each times its gain (in the buses' order)."""
+    total = np.zeros_like(buses["motor"])
+    for name, bus in buses.items():
+        total += bus * np.float32(10.0 ** (gains_db[name] / 20.0))
+    return total
+
+
+def _impact_stem(trace: Trace, config: AudioConfig, seed: int, scale: float) -> np.ndarray:
+    """(2, n) collision impacts and scrapes at the mics, times `scale` and `gain_impacts_db`."""
+    impacts = _impacts(trace, config.sample_rate, seed, config.speed_of_sound)
+    impacts *= np.float32(scale * 10.0 ** (config.gain_impacts_db / 20.0))
+    return impacts
+
+
+def _room(trace: Trace, config: AudioConfig, seed: int, n: int) -> Room | None:
+    """The room that reverberates an indoor episode; None outdoors or with `rt60_s` 0."""
+    if trace.environment == "indoor" and config.rt60_s > 0:
+        return Room(config.rt60_s, config.sample_rate, n, _rng(seed, "room"))
+    return None
+
+
+def _nearfield(
+    trace: Trace, config: AudioConfig, seed: int, n: int, room_gain: float, with_send: bool
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(2, n) near-field events and their mono room send (times `room_gain`), or None when there are none."""
+    if not (config.ambience and config.nearfield_rate_hz > 0):
+        return None
+    listener = nf.Listener(np.asarray(trace.time, dtype=np.float64), np.asarray(trace.mic_pos))
+    near, near_send = nf.render_nearfield(
+        listener, trace.environment, trace.surface, n, config, _rng(seed, "nearfield"), with_send
+    )
+    near_send *= np.float32(room_gain / REF_DISTANCE)  # send per source power (see synth_audio.nearfield)
+    return near, near_send
+
+
+def _room_send(
+    room: Room,
+    stems: dict[str, np.ndarray],
+    near: tuple[np.ndarray, np.ndarray] | None,
+    room_gain: float,
+    n: int,
+    separate: bool,
+) -> np.ndarray:
+    """Send spectrum of the room: the stems so far (robot, impacts), mono, times `room_gain`.
+
+    The near-field events' send joins it (one inverse FFT for every reverberation), unless `separate`
+    (stems asked for): then their reverberation is added to the near-field signal itself, in place.
+    """
+    dry = np.zeros(n, dtype=np.float32)
+    for part in stems.values():
+        dry += part[0]
+        dry += part[1]
+    dry *= np.float32(0.5 * room_gain)
+    if near is not None and near[1].size:
+        signal, send = near
+        if separate:  # the near-field events' reverberation belongs to their own stem
+            signal += room.apply(send)
         else:
-            env, env_send = amb.outdoor(scene, env_rng, config.bird_rate_hz)
-        env_spectrum = None
+            dry += send
+    return room.send_spectrum(dry)
+
+
+def _ambience(
+    trace: Trace,
+    config: AudioConfig,
+    seed: int,
+    n: int,
+    room: Room | None,
+    room_spectrum: np.ndarray | None,
+) -> np.ndarray:
+    """(2, n) environment at `snr_db` below the reference level (with its distant sources' reverberation).
+
+    With a room, the distant sources' reverberation is in the returned stem when stems are asked for;
+    otherwise it is added to `room_spectrum` in place (one inverse FFT for every reverberation).
+    """
+    env, env_send = _raw_ambience(trace, config, seed, n)
+    env_spectrum, level = _distant_sources(env, env_send, room, n)
+    target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
+    gain = target / level if level > 0 else 0.0
+    env *= np.float32(gain)
+    if room is not None and env_spectrum is not None:
+        env_spectrum *= np.complex64(gain)
+        if config.stems:
+            env += room.wet(env_spectrum)
+        elif room_spectrum is not None:  # one inverse FFT for the robot's and the rooms' reverberation
+            room_spectrum += env_spectrum
+    return env
+
+
+def _raw_ambience(trace: Trace, config: AudioConfig, seed: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(2, n) unscaled dry ambience of the trace's environment and its mono reverberation send (reduced
+    rate; empty outdoors)."""
+    robot = trace.robot
+    scene = amb.Scene(
+        n, config.sample_rate, np.asarray(robot.mic_pos_body, dtype=np.float64), mic_axes(robot.mic_pos_body),
+        config.speed_of_sound, _world_to_body(trace),
+    )  # fmt: skip
+    env_rng = _rng(seed, "ambience")
+    if trace.environment == "indoor":
+        return amb.indoor(scene, env_rng, config.door_rate_hz, DECIMATION)
+    return amb.outdoor(scene, env_rng, config.bird_rate_hz)
+
+
+def _distant_sources(
+    env: np.ndarray, env_send: np.ndarray, room: Room | None, n: int
+) -> tuple[np.ndarray | None, float]:
+    """The send spectrum of the ambience's distant sources (None without a room) and the ambience's RMS.
+
+    With a room, the RMS counts their reverberation (Parseval); without one, they are added to `env` dry,
+    in place.
+    """
+    env_spectrum = None
+    energy = float(np.sum(np.square(env, dtype=np.float64)))
+    if env_send.size and room is not None:
+        env_spectrum = room.send_spectrum_low(env_send)
+        energy += room.wet_energy(env_spectrum)
+    elif env_send.size:  # no reverberation asked for: the distant sources arrive dry
+        t_low = np.arange(env_send.size) * DECIMATION
+        env += np.interp(np.arange(n), t_low, env_send).astype(np.float32)[None, :]
         energy = float(np.sum(np.square(env, dtype=np.float64)))
-        if env_send.size and room is not None:
-            env_spectrum = room.send_spectrum_low(env_send)
-            energy += room.wet_energy(env_spectrum)  # the distant sources' reverberation (Parseval)
-        elif env_send.size:  # no reverberation asked for: the distant sources arrive dry
-            t_low = np.arange(env_send.size) * DECIMATION
-            env += np.interp(np.arange(n), t_low, env_send).astype(np.float32)[None, :]
-            energy = float(np.sum(np.square(env, dtype=np.float64)))
-        level = float(np.sqrt(energy / env.size))
-        target = 10.0 ** (config.reference_level_dbfs / 20.0) * 10.0 ** (-config.snr_db / 20.0)
-        gain = target / level if level > 0 else 0.0
-        env *= np.float32(gain)
-        if room is not None and env_spectrum is not None:
-            env_spectrum *= np.complex64(gain)
-            if config.stems:
-                env += room.wet(env_spectrum)
-            elif room_spectrum is not None:  # one inverse FFT for the robot's and the rooms' reverberation
-                room_spectrum += env_spectrum
-        stems["ambience"] = env
-    if room is not None and room_spectrum is not None:
-        stems["room"] = room.wet(room_spectrum)
-    if math.isfinite(config.mic_noise_dbfs):
-        noise_rng = _rng(seed, "mic_noise")
-        noise = np.stack([white(noise_rng, n), white(noise_rng, n)])
-        noise *= np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
-        stems["mic_noise"] = noise
+    return env_spectrum, float(np.sqrt(energy / env.size))
+
+
+def _mic_noise(config: AudioConfig, seed: int, n: int) -> np.ndarray:
+    """(2, n) microphone self-noise, independent per channel, at `mic_noise_dbfs`."""
+    noise_rng = _rng(seed, "mic_noise")
+    noise = np.stack([white(noise_rng, n), white(noise_rng, n)])
+    noise *= np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
+    return noise
+
+
+def _mixdown(stems: dict[str, np.ndarray], config: AudioConfig, n: int) -> Audio:
+    """The Audio: the stems added in order (and limited), plus every `STEM_NAMES` stem if asked for."""
     parts = list(stems.values())
     mix = parts[0].copy() if config.stems else parts[0]  # the first stem's buffer is free to reuse
     for part in parts[1:]:
@@ -357,4 +469,4 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
             name: np.ascontiguousarray(stems[name].T, dtype=np.float32) if name in stems else zero.copy()
             for name in STEM_NAMES
         }
-    return Audio(samples=samples, sample_rate=sr, stems=out_stems)
+    return Audio(samples=samples, sample_rate=config.sample_rate, stems=out_stems)

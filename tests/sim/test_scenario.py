@@ -10,7 +10,15 @@ from pathlib import Path
 import pytest
 from sim_kit import straight
 
-from sim import ScenarioError, random_scenario, scenario_presets, simulate, vocab
+from sim import (
+    ScenarioError,
+    ScenarioOptions,
+    draw_scenario,
+    random_scenario,
+    scenario_presets,
+    simulate,
+    vocab,
+)
 from sim.robot import asset_path
 from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
 
@@ -101,6 +109,18 @@ def test_random_scenario_depends_only_on_its_arguments() -> None:
     assert a != c
     assert a.faults[0].kind == "bearing" and 0.3 <= a.faults[0].severity <= 1.0
     assert 0.0 < a.faults[0].onset < a.duration
+
+
+def test_draw_scenario_with_options_is_random_scenario() -> None:
+    options = ScenarioOptions(
+        duration=30.0, environment="indoor", fault_kind="imbalance", wheel=2, unit_id=5, surface="carpet"
+    )
+    drawn = draw_scenario(4, "fault", options)
+    assert drawn == random_scenario(4, "fault", **dataclasses.asdict(options))
+    assert (drawn.surface, drawn.robot.unit_id, drawn.faults[0].wheel) == ("carpet", 5, 2)
+    assert draw_scenario(4, "nominal", ScenarioOptions(duration=30.0)) == random_scenario(
+        4, "nominal", duration=30.0
+    )
 
 
 def test_a_given_surface_changes_the_floor_and_nothing_else() -> None:

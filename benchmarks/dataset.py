@@ -456,17 +456,11 @@ def generate(
                 f"left out {len(dropped)} window(s) of nominal episodes with an anomaly in them "
                 "(listed in manifest.json)"
             )
-        _write_windows_csv(tmp / "windows.csv", rows)
         manifest = {
             "format_version": DATASET_FORMAT_VERSION,
             "preset": asdict(preset),
             "seed": seed,
             "software": software_versions(),
-            "windows": {
-                "file": "windows.csv",
-                "sha256": sha256_file(tmp / "windows.csv"),
-                "count": len(rows),
-            },
             "dropped_nominal_windows": [asdict(d) for d in dropped],
             "episodes": [
                 {
@@ -476,12 +470,25 @@ def generate(
                 for spec in specs
             ],
         }
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        write_index(tmp, manifest, rows)
         os.replace(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+MANIFEST_FILE, WINDOWS_FILE = "manifest.json", "windows.csv"
+"""The dataset folder's own files (each episode's are `benchmarks.episode`'s)."""
+
+
+def write_index(folder: Path, manifest: dict[str, Any], rows: list[WindowRow]) -> None:
+    """Write `windows.csv` and `manifest.json` (`manifest` plus the window table's checksum and count) into
+    a dataset folder being built; the generator and the importer both finish with it."""
+    _write_windows_csv(folder / WINDOWS_FILE, rows)
+    windows = {"file": WINDOWS_FILE, "sha256": sha256_file(folder / WINDOWS_FILE), "count": len(rows)}
+    doc = {**manifest, "windows": windows}
+    (folder / MANIFEST_FILE).write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
 
 
 def _write_windows_csv(path: Path, rows: list[WindowRow]) -> None:
@@ -573,7 +580,7 @@ def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dat
     `progress` shows a bar over the files while their sha256 is checked.
     """
     path = Path(path)
-    manifest_path = path / "manifest.json"
+    manifest_path = path / MANIFEST_FILE
     if not manifest_path.is_file():
         raise InputNotFoundError(f"not a dataset (no manifest.json): {path}")
     manifest = json.loads(manifest_path.read_text())
@@ -586,7 +593,7 @@ def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dat
         )
     if verify:
         verify_dataset(path, manifest, progress=progress)
-    windows_path = path / "windows.csv"
+    windows_path = path / WINDOWS_FILE
     if not windows_path.is_file():
         raise DatasetError(f"{path}: missing window table windows.csv")
     with open(windows_path, newline="") as handle:
@@ -636,7 +643,7 @@ def dataset_fingerprint(manifest: dict[str, Any]) -> str:
 
 def verify_dataset(path: Path, manifest: dict[str, Any], progress: bool = False) -> None:
     """Check that every file the manifest lists exists and has its recorded sha256 (a bar if `progress`)."""
-    expected: list[tuple[Path, str]] = [(path / "windows.csv", manifest["windows"]["sha256"])]
+    expected: list[tuple[Path, str]] = [(path / WINDOWS_FILE, manifest["windows"]["sha256"])]
     for episode in manifest["episodes"]:
         for name, digest in episode["files"].items():
             expected.append((path / episode["episode_id"] / name, digest))

@@ -6,15 +6,20 @@ deterministic: the same trace and audio give the same bytes, so the manifest's s
 
 An episode imported from real recordings (`msvdd-bench import`, `benchmarks.importers`) has no simulator
 trace: its `meta.json` says `"source": "import"` and lists its `modalities`, and it holds every file but
-`trace.npz` (`IMPORTED_EPISODE_FILES`).
+`trace.npz` (`IMPORTED_EPISODE_FILES`); `write_imported_episode` writes it.
+
+This module owns the episode folder: no other module opens an episode's files by name. Readers that need
+one file only use `read_events`, `read_trace`, `read_trace_signals` or `audio_file`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,12 +52,19 @@ at most 0.4 dB there and by nothing measurable in the detectors' band. 24 bits w
 2.2 times the bytes.
 """
 
-EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "trace.npz", "events.json", "meta.json")
+AUDIO_FILE, IMU_FILE, TRACE_FILE, EVENTS_FILE, META_FILE = (
+    "audio.flac",
+    "imu.npz",
+    "trace.npz",
+    "events.json",
+    "meta.json",
+)
+EPISODE_FILES: tuple[str, ...] = (AUDIO_FILE, IMU_FILE, TRACE_FILE, EVENTS_FILE, META_FILE)
 """The files of one episode folder."""
 
 SIMULATED, IMPORTED = "simulate", "import"
 """Where an episode comes from (`meta.json` `source`; absent means simulated)."""
-IMPORTED_EPISODE_FILES: tuple[str, ...] = ("audio.flac", "imu.npz", "events.json", "meta.json")
+IMPORTED_EPISODE_FILES: tuple[str, ...] = (AUDIO_FILE, IMU_FILE, EVENTS_FILE, META_FILE)
 """The files of an imported episode folder: no `trace.npz`, there is no simulator behind it."""
 ALL_MODALITIES: tuple[str, ...] = ("audio", "imu")
 """Sensors an episode can carry; a simulated one carries both."""
@@ -121,11 +133,45 @@ class Episode:
         """
         if self.source == IMPORTED:
             raise EpisodeError(f"{self.path}: imported from recordings, so it has no simulator trace")
-        return Trace.load(self.path / "trace.npz")
+        return read_trace(self.path)
 
     def events(self) -> dict[str, Any]:
-        """The human-readable events (contacts, transients, faults)."""
-        return dict(json.loads((self.path / "events.json").read_text()))
+        """The human-readable events (contacts, transients, faults; `anomalies` of an import)."""
+        return read_events(self.path)
+
+    def audio_bytes(self) -> bytes:
+        """The encoded `audio.flac` as stored (for players that take the file itself)."""
+        return audio_file(self.path).read_bytes()
+
+
+def is_episode_folder(path: Path) -> bool:
+    """Whether `path` looks like an episode folder (it holds a `meta.json`)."""
+    return (Path(path) / META_FILE).is_file()
+
+
+def audio_file(folder: Path) -> Path:
+    """The path of an episode folder's encoded audio."""
+    return Path(folder) / AUDIO_FILE
+
+
+def read_events(folder: Path) -> dict[str, Any]:
+    """An episode folder's `events.json`: contacts, transients, faults (and an import's `anomalies`)."""
+    return dict(json.loads((Path(folder) / EVENTS_FILE).read_text()))
+
+
+def read_trace(folder: Path) -> Trace:
+    """An episode folder's full simulator trace (`sim.Trace.load`; a TraceError names a bad file)."""
+    return Trace.load(Path(folder) / TRACE_FILE)
+
+
+def read_trace_signals(folder: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Only the named arrays of an episode's `trace.npz`, as float64 (far faster than `read_trace`).
+
+    Stored fields only: the ones `sim.trace_storage` derives on load (`time`, `wheel_angle`, `mic_pos`)
+    need `read_trace`.
+    """
+    with np.load(Path(folder) / TRACE_FILE, allow_pickle=False) as arrays:
+        return {name: np.asarray(arrays[name], dtype=np.float64) for name in names}
 
 
 def software_versions() -> dict[str, str]:
@@ -200,44 +246,125 @@ def write_episode(
     Raises:
         FileExistsError: if `directory` exists already.
     """
+    imu = ImuArrays(
+        time=trace.imu_time,
+        vel_z=trace.imu_vel_z.astype(np.float32),
+        imu6=np.concatenate([trace.imu_acc, trace.imu_gyro], axis=1).astype(np.float32),
+        label=trace.label.astype(np.int8),
+        sub_kind=trace.sub_kind.astype(np.int16),
+        label_wheel=trace.label_wheel.astype(np.int8),
+    )
+    meta_doc = {
+        "format_version": EPISODE_FORMAT_VERSION,
+        "episode": meta.__dict__,
+        "audio_rate": audio.sample_rate,
+        "audio_bits": EPISODE_AUDIO_BITS,
+        "labels": list(LABELS),
+        "sub_kinds": list(SUB_KINDS),
+        "scenario": scenario,
+        "software": software_versions(),
+    }
+    with _staged(directory) as tmp:
+        synth_audio.write(tmp / AUDIO_FILE, audio, bits=EPISODE_AUDIO_BITS, dither_seed=meta.seed)
+        imu.write(tmp / IMU_FILE)
+        trace.save(tmp / TRACE_FILE)
+        _write_json(tmp / EVENTS_FILE, events_dict(trace))
+        _write_json(tmp / META_FILE, meta_doc)
+    return directory
+
+
+IMPORTED_AUDIO_BITS = 24
+"""Bits per sample of an imported episode's `audio.flac`: recordings keep their own noise floor."""
+
+
+def write_imported_episode(
+    directory: Path,
+    meta: EpisodeMeta,
+    audio: synth_audio.Audio,
+    imu: ImuArrays,
+    anomalies: list[dict[str, Any]],
+    modalities: tuple[str, ...],
+    recording: dict[str, Any],
+) -> Path:
+    """Write an episode imported from a recording (no trace), atomically like `write_episode`.
+
+    Args:
+        directory: the episode folder to create (must not exist).
+        meta: identity and split (`snr_db` is not known for a recording and is written as null).
+        audio: the resampled recording.
+        imu: the IMU at 200 Hz with its label timeline (zeros where the recording has no IMU).
+        anomalies: the labelled spans, `{onset, end, kind, sub_kind}` each.
+        modalities: the sensors recorded (`ALL_MODALITIES` or a part of it).
+        recording: provenance of the recording (name, source file, options).
+    """
+    meta_doc = {
+        "format_version": EPISODE_FORMAT_VERSION,
+        "episode": {**meta.__dict__, "snr_db": None},
+        "audio_rate": audio.sample_rate,
+        "audio_bits": IMPORTED_AUDIO_BITS,
+        "labels": list(LABELS),
+        "sub_kinds": list(SUB_KINDS),
+        "scenario": {},
+        "source": IMPORTED,
+        "modalities": list(modalities),
+        "recording": recording,
+        "software": software_versions(),
+    }
+    events = {"contacts": [], "transients": [], "faults": [], "anomalies": anomalies}
+    with _staged(directory) as tmp:
+        synth_audio.write(tmp / AUDIO_FILE, audio, bits=IMPORTED_AUDIO_BITS)
+        imu.write(tmp / IMU_FILE)
+        _write_json(tmp / EVENTS_FILE, events)
+        _write_json(tmp / META_FILE, meta_doc)
+    return directory
+
+
+@dataclass(frozen=True)
+class ImuArrays:
+    """What `imu.npz` holds, at the IMU rate."""
+
+    time: np.ndarray
+    """(m,) time stamps, s."""
+    vel_z: np.ndarray
+    """(m,) float32 z-axis velocity, m/s."""
+    imu6: np.ndarray
+    """(m, 6) float32 accelerometer xyz, gyro xyz."""
+    label: np.ndarray
+    """(m,) int8 label index (`sim.vocab.LABELS`)."""
+    sub_kind: np.ndarray
+    """(m,) int16 sub-kind index (`sim.vocab.SUB_KINDS`)."""
+    label_wheel: np.ndarray
+    """(m,) int8 wheel of a mechanical label, -1 otherwise."""
+
+    def write(self, path: Path) -> None:
+        """Write the arrays to a compressed `.npz` (deterministic bytes)."""
+        with open(path, "wb") as handle:
+            np.savez_compressed(
+                handle,
+                time=self.time,
+                vel_z=self.vel_z,
+                imu6=self.imu6,
+                label=self.label,
+                sub_kind=self.sub_kind,
+                label_wheel=self.label_wheel,
+            )
+
+
+@contextlib.contextmanager
+def _staged(directory: Path) -> Iterator[Path]:
+    """A temporary sibling folder to write into, renamed to `directory` when the block ends without error
+    (and removed otherwise). Raises FileExistsError if `directory` exists already."""
     directory = Path(directory)
     if directory.exists():
         raise FileExistsError(f"episode folder exists already: {directory}")
     directory.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}-", dir=directory.parent))
     try:
-        synth_audio.write(tmp / "audio.flac", audio, bits=EPISODE_AUDIO_BITS, dither_seed=meta.seed)
-        imu6 = np.concatenate([trace.imu_acc, trace.imu_gyro], axis=1).astype(np.float32)
-        with open(tmp / "imu.npz", "wb") as handle:
-            np.savez_compressed(
-                handle,
-                time=trace.imu_time,
-                vel_z=trace.imu_vel_z.astype(np.float32),
-                imu6=imu6,
-                label=trace.label.astype(np.int8),
-                sub_kind=trace.sub_kind.astype(np.int16),
-                label_wheel=trace.label_wheel.astype(np.int8),
-            )
-        trace.save(tmp / "trace.npz")
-        _write_json(tmp / "events.json", events_dict(trace))
-        _write_json(
-            tmp / "meta.json",
-            {
-                "format_version": EPISODE_FORMAT_VERSION,
-                "episode": meta.__dict__,
-                "audio_rate": audio.sample_rate,
-                "audio_bits": EPISODE_AUDIO_BITS,
-                "labels": list(LABELS),
-                "sub_kinds": list(SUB_KINDS),
-                "scenario": scenario,
-                "software": software_versions(),
-            },
-        )
+        yield tmp
         os.replace(tmp, directory)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return directory
 
 
 def read_episode(directory: Path) -> Episode:
@@ -245,9 +372,9 @@ def read_episode(directory: Path) -> Episode:
     directory = Path(directory)
     if not directory.is_dir():
         raise InputNotFoundError(f"episode folder not found: {directory}")
-    if not (directory / "meta.json").is_file():
-        raise EpisodeError(f"{directory}: missing episode file meta.json")
-    meta_doc = json.loads((directory / "meta.json").read_text())
+    if not is_episode_folder(directory):
+        raise EpisodeError(f"{directory}: missing episode file {META_FILE}")
+    meta_doc = json.loads((directory / META_FILE).read_text())
     source = str(meta_doc.get("source", SIMULATED))
     for name in IMPORTED_EPISODE_FILES if source == IMPORTED else EPISODE_FILES:
         if not (directory / name).is_file():
@@ -256,10 +383,10 @@ def read_episode(directory: Path) -> Episode:
     if version not in READABLE_EPISODE_FORMATS:
         readable = " or ".join(str(v) for v in READABLE_EPISODE_FORMATS)
         raise EpisodeError(
-            f"{directory / 'meta.json'}: episode format_version {version}, this software reads {readable}"
+            f"{directory / META_FILE}: episode format_version {version}, this software reads {readable}"
         )
-    audio = synth_audio.read(directory / "audio.flac")
-    with np.load(directory / "imu.npz", allow_pickle=False) as imu:
+    audio = synth_audio.read(audio_file(directory))
+    with np.load(directory / IMU_FILE, allow_pickle=False) as imu:
         arrays = {key: imu[key] for key in imu.files}
     return Episode(
         path=directory,

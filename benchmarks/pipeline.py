@@ -6,7 +6,6 @@ This is the glue of `msvdd-bench train`, `evaluate` and `run`: it reads only the
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +15,7 @@ from tqdm import tqdm
 
 from benchmarks import methods
 from benchmarks.dataset import Dataset, DatasetError, WindowRow
+from benchmarks.episode import read_events
 from benchmarks.metrics import MethodMetrics, compute_metrics
 from benchmarks.modalities import require_modalities
 from msvdd.contract import Detector, Windows
@@ -104,7 +104,7 @@ def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, n
     episodes: list[str] = []
     onsets: list[float] = []
     for episode_id in sorted({r.episode for r in rows if r.kind != "normal"}):
-        events = json.loads((dataset.path / episode_id / "events.json").read_text())
+        events = read_events(dataset.path / episode_id)
         times = [c["time"] for c in events["contacts"]] if category[episode_id] == "collision" else []
         times += [f["onset"] for f in events["faults"] if f["severity"] > 0]
         times += [a["onset"] for a in events.get("anomalies", [])]

@@ -55,7 +55,7 @@ from benchmarks.audit.report import (
     ProbeRow,
 )
 from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_config, open_dataset
-from benchmarks.episode import IMPORTED, read_episode
+from benchmarks.episode import IMPORTED, read_episode, read_trace, read_trace_signals
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
 from benchmarks.modalities import dataset_modalities
@@ -63,7 +63,6 @@ from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
 from msvdd import preprocess
 from msvdd.contract import IMU_RATE, WINDOW_S, Windows
 from sim.random_scenarios import SETTLE_S
-from sim.trace import Trace
 from sim.vocab import NORMAL
 
 CONTEXT_MARGIN_S = 1.0
@@ -115,12 +114,10 @@ class _Collected:
         )
 
 
-def _kinematics(trace_path: Path, starts: np.ndarray) -> dict[str, np.ndarray]:
-    with np.load(trace_path, allow_pickle=False) as t:  # the three signals only: faster than Trace.load
-        quat, linvel, angvel = (
-            np.asarray(t[k], dtype=np.float64) for k in ("base_quat", "base_linvel", "base_angvel")
-        )
-        dt = float(t["physics_dt"])
+def _kinematics(episode: Path, starts: np.ndarray) -> dict[str, np.ndarray]:
+    got = read_trace_signals(episode, ("base_quat", "base_linvel", "base_angvel", "physics_dt"))
+    quat, linvel, angvel = got["base_quat"], got["base_linvel"], got["base_angvel"]
+    dt = float(got["physics_dt"])
     speed = signals.forward_speed(quat, linvel)
     # The first physics sample is at dt: pad one sample so index = time x rate.
     speed = np.r_[speed[:1], speed]
@@ -168,7 +165,7 @@ def _collect(data: Dataset, progress: bool, simulated: bool, has_imu: bool) -> _
         if has_imu:
             got.add("acc_peak", signals.acceleration_peak(episode.imu6[:, :3], IMU_RATE, starts))
         if simulated:
-            for name, values in _kinematics(data.path / episode_id / "trace.npz", starts).items():
+            for name, values in _kinematics(data.path / episode_id, starts).items():
                 got.add(name, values)
             hx, hy = episode.scenario["arena"]
             got.area += [4.0 * hx * hy] * len(rows)
@@ -201,7 +198,7 @@ def _deleted_windows(data: Dataset, rows: list[WindowRow], progress: bool) -> tu
     kept: list[WindowRow] = []
     for episode_id, ep_rows in tqdm(by_episode.items(), desc="audit: re-render muted", disable=not progress):
         spec = specs[episode_id]
-        trace = Trace.load(data.path / episode_id / "trace.npz")
+        trace = read_trace(data.path / episode_id)
         audio = synth_audio.render(trace, episode_audio_config(spec, MUTED_ANOMALY_SOURCES), seed=spec.seed)
         starts = np.array([r.start_s for r in ep_rows])
         parts.append(
@@ -230,7 +227,7 @@ def _ambience_repetition(data: Dataset, episodes: list[str]) -> list[tuple[str, 
     out = []
     for episode_id in episodes:
         spec = specs[episode_id]
-        trace = Trace.load(data.path / episode_id / "trace.npz")
+        trace = read_trace(data.path / episode_id)
         config = episode_audio_config(spec)
         audio = synth_audio.render(
             trace, synth_audio.AudioConfig(**{**config.__dict__, "stems": True}), seed=spec.seed

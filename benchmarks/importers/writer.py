@@ -14,9 +14,7 @@ the first ones train, then `val_fraction` of the rest validation, and the last `
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import json
 import math
 import os
 import shutil
@@ -32,19 +30,21 @@ from tqdm import tqdm
 import synth_audio
 from benchmarks.dataset import (
     DATASET_FORMAT_VERSION,
-    WINDOW_COLUMNS,
+    MANIFEST_FILE,
     EpisodeSpec,
     WindowRow,
     label_windows,
     sha256_file,
     window_starts,
+    write_index,
 )
 from benchmarks.episode import (
-    EPISODE_FORMAT_VERSION,
     IMPORTED,
     IMPORTED_EPISODE_FILES,
     EpisodeMeta,
+    ImuArrays,
     software_versions,
+    write_imported_episode,
 )
 from benchmarks.errors import OutputExistsError
 from benchmarks.importers.config import ImportConfig, SourceError
@@ -190,10 +190,6 @@ def _window_labels(
     return out
 
 
-def _write_json(path: Path, doc: Any) -> None:
-    path.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
-
-
 @dataclass
 class _Written:
     """What the writer keeps of each episode for the window table and the manifest."""
@@ -239,42 +235,26 @@ def _write_episode(
             f"recording {plan.name!r}: {duration:.3f} s long; allowed: at least one {WINDOW_S:g} s window"
         )
     category = _category(rec.spans)
-    folder = directory / episode_id
-    folder.mkdir()
-    synth_audio.write(folder / "audio.flac", synth_audio.Audio(samples=audio, sample_rate=OUT_AUDIO_RATE))
-    with open(folder / "imu.npz", "wb") as handle:
-        np.savez_compressed(
-            handle,
-            time=np.arange(n_imu, dtype=np.float64) / IMU_RATE,
-            vel_z=vel_z,
-            imu6=imu6,
-            label=label,
-            sub_kind=sub_global,
-            label_wheel=np.full(n_imu, -1, dtype=np.int8),
-        )
     anomalies = [
         {"onset": s.start_s, "end": min(s.end_s, duration), "kind": s.kind, "sub_kind": s.sub_kind}
         for s in sorted(rec.spans, key=lambda s: s.start_s)
     ]
-    _write_json(
-        folder / "events.json", {"contacts": [], "transients": [], "faults": [], "anomalies": anomalies}
+    imu = ImuArrays(
+        time=np.arange(n_imu, dtype=np.float64) / IMU_RATE,
+        vel_z=vel_z,
+        imu6=imu6,
+        label=label,
+        sub_kind=sub_global,
+        label_wheel=np.full(n_imu, -1, dtype=np.int8),
     )
-    modalities = ["audio"] if rec.vel_z is None else ["audio", "imu"]
-    meta = EpisodeMeta(episode_id, category, split, plan.unit_id, 0, math.nan, duration)
-    _write_json(
-        folder / "meta.json",
-        {
-            "format_version": EPISODE_FORMAT_VERSION,
-            "episode": {**asdict(meta), "snr_db": None},
-            "audio_rate": OUT_AUDIO_RATE,
-            "labels": list(LABELS),
-            "sub_kinds": list(SUB_KINDS),
-            "scenario": {},
-            "source": IMPORTED,
-            "modalities": modalities,
-            "recording": {"name": plan.name, **rec.provenance},
-            "software": software_versions(),
-        },
+    write_imported_episode(
+        directory / episode_id,
+        EpisodeMeta(episode_id, category, split, plan.unit_id, 0, math.nan, duration),
+        synth_audio.Audio(samples=audio, sample_rate=OUT_AUDIO_RATE),
+        imu,
+        anomalies,
+        ("audio",) if rec.vel_z is None else ("audio", "imu"),
+        {"name": plan.name, **rec.provenance},
     )
     rows = []
     for start, lab in zip(starts, _window_labels(label, sub_local, names, starts), strict=True):
@@ -348,7 +328,7 @@ def _check_output(out: Path, source: Path, replace: bool) -> None:
             raise OutputExistsError(
                 f"dataset folder exists already: {out} (remove it, choose another --out, or pass --replace)"
             )
-        if not out.is_dir() or (any(out.iterdir()) and not (out / "manifest.json").is_file()):
+        if not out.is_dir() or (any(out.iterdir()) and not (out / MANIFEST_FILE).is_file()):
             raise OutputExistsError(
                 f"--replace: {out} is not a dataset folder (no manifest.json); it is left alone"
             )
@@ -407,11 +387,6 @@ def write_dataset(
             raise SourceError(f"{source}: some recordings have IMU and some do not; allowed: all or none")
         rows = [r for w in written for r in w.rows]
         rows = [dataclasses.replace(r, window_id=i) for i, r in enumerate(rows)]
-        with open(tmp / "windows.csv", "w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(WINDOW_COLUMNS)
-            for row in rows:
-                writer.writerow([getattr(row, c) for c in WINDOW_COLUMNS])
         preset = _preset(layout, Path(source), config, written)
         manifest = {
             "format_version": DATASET_FORMAT_VERSION,
@@ -421,17 +396,12 @@ def write_dataset(
             "preset": asdict(preset),
             "seed": 0,
             "software": software_versions(),
-            "windows": {
-                "file": "windows.csv",
-                "sha256": sha256_file(tmp / "windows.csv"),
-                "count": len(rows),
-            },
             "dropped_nominal_windows": [],
             "episodes": [
                 {**asdict(w.spec), "snr_db": None, "recording": w.name, "files": w.files} for w in written
             ],
         }
-        _write_json(tmp / "manifest.json", manifest)
+        write_index(tmp, manifest, rows)
         _swap_into_place(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -3,15 +3,13 @@ simulator trace, so no 3D scene, wheel speeds or contact events; the labelled an
 
 from __future__ import annotations
 
-import json
-
 from benchmarks.episode import Episode
 from benchmarks.viz.events import TextEvent
 
 
 def span_events(episode: Episode) -> list[TextEvent]:
     """An ERROR at each labelled anomaly's onset and an INFO at its end (from events.json `anomalies`)."""
-    doc = json.loads((episode.path / "events.json").read_text())
+    doc = episode.events()
     out: list[TextEvent] = []
     for span in doc.get("anomalies", []):
         what = f"{span['kind']}: {span['sub_kind']}"

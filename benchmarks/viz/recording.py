@@ -11,7 +11,7 @@ from pathlib import Path
 import rerun as rr
 
 from benchmarks.dataset import window_starts
-from benchmarks.episode import IMPORTED, Episode, read_episode
+from benchmarks.episode import IMPORTED, Episode, is_episode_folder, read_episode
 from benchmarks.errors import InputNotFoundError, UserError
 from benchmarks.viz.blueprint import build_blueprint
 from benchmarks.viz.config import TIMELINE, VizConfig
@@ -45,7 +45,7 @@ def find_episode(dataset_dir: str | os.PathLike[str], episode_id: str) -> Path:
         raise UserError(f"episode id {episode_id!r} is not a folder name of {data}")
     folder = data / episode_id
     if not folder.is_dir():
-        known = sorted(p.name for p in data.iterdir() if (p / "meta.json").is_file())
+        known = sorted(p.name for p in data.iterdir() if is_episode_folder(p))
         hint = f"; episodes there include {', '.join(known[:6])}" if known else "; it holds no episodes"
         raise InputNotFoundError(f"episode folder not found: {folder}{hint}")
     return folder
@@ -120,7 +120,7 @@ def log_recording(
         events += detection_events(scores)
     log_events(rec, events)
     if audio_playback:
-        blob = (episode.path / "audio.flac").read_bytes()
+        blob = episode.audio_bytes()
         rec.send_columns(
             "audio",
             indexes=[rr.TimeColumn(TIMELINE, duration=[0.0])],

@@ -51,20 +51,25 @@ def add_device_argument(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_executor_arguments(p: argparse.ArgumentParser, what: str = "the episodes are built") -> None:
-    """`--executor`, `--address` and `--workers`: where the independent tasks run (`what`: which they are)."""
+def add_executor_arguments(
+    p: argparse.ArgumentParser,
+    what: str = "the episodes are built",
+    same: str = "the same preset and seed give the same dataset checksums with either",
+    shared: str = "the output folder's file system",
+) -> None:
+    """`--executor`, `--address` and `--workers`: where the independent tasks run (`what`: which they are;
+    `same`: what does not depend on the executor; `shared`: what a cluster's nodes must all see)."""
     p.add_argument(
         "--executor",
         choices=EXECUTORS,
         default="local",
-        help=f"where {what}: local worker processes, or Ray (pip install 'msvdd-bench[ray]'); the same "
-        "preset and seed give the same dataset checksums with either",
+        help=f"where {what}: local worker processes, or Ray (pip install 'msvdd-bench[ray]'); {same}",
     )
     p.add_argument(
         "--address",
         default=None,
         help="with --executor ray: HOST:PORT of a running Ray cluster's head, or auto (default: RAY_ADDRESS, "
-        "else a Ray started on this machine); its nodes must share the output folder's file system",
+        f"else a Ray started on this machine); its nodes must share {shared}",
     )
     p.add_argument(
         "--workers",

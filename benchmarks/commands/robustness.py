@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import sys
 from pathlib import Path
 
-from benchmarks.command import Command, add_progress_argument
+from benchmarks.command import Command, add_executor_arguments, add_progress_argument
 
 KIND_NAMES = ("offset", "drift", "jitter", "imu-drop", "audio-gap", "audio-missing", "imu-missing")
 """`benchmarks.robustness.perturb.KINDS`, kept here so that building the parser imports no numpy (a test
@@ -20,7 +21,10 @@ DESCRIPTION = (
     "offset -200 -50 -10 10 50 200 ms (IMU delayed relative to audio); drift 100 500 2000 ppm (IMU time "
     "stretched about the episode start); jitter 0.1 0.5 2 ms rms (IMU time stamps, resampled to the grid); "
     "imu-drop 1 5 20 % (last sample held); audio-gap 10 50 200 ms per s (zeroed); audio-missing, imu-missing "
-    "100 % (zeroed stream). Writes robustness.md, robustness.json and robustness.png into --out."
+    "100 % (zeroed stream). The clean windows and each perturbation are scored as independent tasks on "
+    "local worker processes or Ray (--executor); a task's draws are keyed by (seed, kind, severity, episode "
+    "index) and it scores on one thread, so the results do not depend on the executor. Writes "
+    "robustness.md, robustness.json and robustness.png into --out."
 )
 
 
@@ -42,12 +46,19 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="kinds to apply, each at its default severities or at the ones given after '='",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations' random draws")
+    add_executor_arguments(
+        p,
+        what="the conditions are scored (one task per perturbation and severity, and the clean windows)",
+        same="the results are the same bit for bit with either and any --workers",
+        shared="the dataset and model folders, at the same paths",
+    )
     add_progress_argument(p)
 
 
 def _run(args: argparse.Namespace) -> int:
     from benchmarks.dataset import open_dataset
     from benchmarks.errors import OutputExistsError
+    from benchmarks.executor import make_executor
     from benchmarks.robustness.report import MARKDOWN_FILE, RunContext, write_outputs
     from benchmarks.robustness.run import (
         RobustnessConfig,
@@ -64,10 +75,13 @@ def _run(args: argparse.Namespace) -> int:
             f"--out {args.out}: the folder exists already; allowed: a path that does not exist"
         )
     config = RobustnessConfig(perturbations=parse_perturbations(args.perturbations), seed=args.seed)
-    folders = model_folders(args.models)
-    dataset = open_dataset(args.data, progress=progress)
-    models = load_models(folders, progress=progress)
-    result = run_robustness(dataset, models, config, test_rows(dataset), progress=progress)
+    executor = make_executor(args.executor, workers=args.workers, address=args.address)  # checks the flags
+    with contextlib.closing(executor):
+        folders = model_folders(args.models)
+        dataset = open_dataset(args.data, progress=progress)
+        models = load_models(folders, progress=progress)
+        rows = test_rows(dataset)
+        result = run_robustness(dataset, models, config, rows, progress=progress, executor=executor)
     context = RunContext(
         dataset=str(args.data),
         preset=str(dataset.preset.name),
@@ -90,6 +104,6 @@ COMMAND = Command(
     example=(
         "msvdd-bench robustness --data runs/demo/dataset --models runs/demo --out runs/demo-robustness\n"
         "msvdd-bench robustness --data runs/demo/dataset --models runs/demo/models/msvdd-seed0 "
-        "--out runs/demo-offsets --perturbations offset=-20,-5,5,20 imu-missing"
+        "--out runs/demo-offsets --perturbations offset=-20,-5,5,20 imu-missing --workers 4"
     ),
 )

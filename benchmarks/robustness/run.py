@@ -5,22 +5,35 @@ perturbation its streams are perturbed (`benchmarks.robustness.perturb`) and the
 their recorded starts, so the clean windows are bit for bit those `msvdd-bench evaluate` scores. Every
 method's AUC (the mean over its training seeds) gets an episode-cluster bootstrap interval, and its ratio
 to the clean AUC an interval from the same episode draws (paired, replicate by replicate).
+
+The clean windows and every perturbation are scored as independent tasks on an executor
+(`benchmarks.executor`: local worker processes or Ray), one task per (kind, severity). A task names the
+dataset folder, the model folders and the test rows; the process that runs it reads the episodes and loads
+the models once per run and keeps them for the run's next tasks (`score_condition`). Its scores depend on
+the task only: the perturbation draws are keyed by (seed, kind, severity, episode index), and the scoring
+runs on one thread (torch and the BLAS pools), so any executor and any number of workers give the same
+scores bit for bit. The driver collects the scores in task order and runs the bootstrap.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import uuid
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import torch
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from benchmarks import methods
 from benchmarks.dataset import Dataset, DatasetError, WindowRow
 from benchmarks.episode import read_episode
 from benchmarks.errors import InputNotFoundError, UserError, check_seed
+from benchmarks.executor import Executor, LocalExecutor
 from benchmarks.methods.registry import METHOD_FILE
 from benchmarks.pipeline import TrainedModel
 from benchmarks.robustness.perturb import KINDS, Perturbation, Streams, apply, reads_outside, rng_for
@@ -35,7 +48,7 @@ from benchmarks.uncertainty import (
     weighted_auc,
 )
 from msvdd import preprocess
-from msvdd.contract import AUDIO_RATE, IMU_LEN, IMU_RATE, Windows
+from msvdd.contract import AUDIO_RATE, IMU_LEN, IMU_RATE, Detector, Windows
 
 
 @dataclass(frozen=True)
@@ -140,15 +153,14 @@ def test_rows(dataset: Dataset) -> list[WindowRow]:
 # --- streams and windows --------------------------------------------------------------------------------
 
 
-def episode_streams(
-    dataset: Dataset, rows: Sequence[WindowRow], progress: bool = False
-) -> dict[str, Streams]:
-    """The continuous streams of every episode behind `rows`, decimated as the dataset loader does."""
+def episode_streams(folder: Path, rows: Sequence[WindowRow], progress: bool = False) -> dict[str, Streams]:
+    """The continuous streams of every episode behind `rows` in the dataset `folder`, decimated as the
+    dataset loader does."""
     out: dict[str, Streams] = {}
     for episode_id in tqdm(
         dict.fromkeys(r.episode for r in rows), desc="loading test episodes", unit="ep", disable=not progress
     ):
-        episode = read_episode(dataset.path / episode_id)
+        episode = read_episode(Path(folder) / episode_id)
         out[episode_id] = Streams(
             audio=preprocess.decimate_audio(episode.audio), imu=episode.imu_vel_z, imu6=episode.imu6
         )
@@ -186,6 +198,95 @@ def cut_windows(
         for j, i in enumerate(indices):
             audio[i], imu[i], imu6[i] = w.audio[j], w.imu[j], w.imu6[j]
     return Windows(audio=np.stack(audio), imu=np.stack(imu), imu6=np.stack(imu6)), touched
+
+
+# --- tasks ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ScoringTask:
+    """One condition (the clean windows or one perturbation) to score with every model; picklable."""
+
+    run: str
+    """Identifies the run: a worker keeps one run's episodes and models between its tasks."""
+    data: Path
+    """Absolute dataset folder."""
+    models: tuple[Path, ...]
+    """Absolute model folders, in the run's model order."""
+    rows: tuple[WindowRow, ...]
+    """The test windows, in the run's order."""
+    episode_index: tuple[tuple[str, int], ...]
+    """(episode folder, index in manifest.json) of every episode behind `rows`: keys the draws."""
+    perturbation: Perturbation | None
+    """None: the clean windows."""
+    seed: int
+    """Seed of the perturbations' draws."""
+
+
+@dataclass(frozen=True)
+class ConditionScores:
+    """What a task gives back: every model's scores of one condition's windows."""
+
+    scores: tuple[np.ndarray, ...]
+    """Per model (task order), its scores of the windows in row order, as the detector returned them."""
+    mirrored_windows: int
+    """Windows holding IMU samples from past the recording's ends."""
+
+
+@dataclass
+class _Loaded:
+    """One run's inputs, kept by the process that scores its tasks."""
+
+    run: str
+    streams: dict[str, Streams] | None = None
+    detectors: list[Detector] | None = None
+
+
+_LOADED: _Loaded | None = None
+"""This process's inputs of the run it scores now (one run at a time)."""
+
+
+def _loaded(run: str) -> _Loaded:
+    global _LOADED
+    if _LOADED is None or _LOADED.run != run:
+        _LOADED = _Loaded(run)  # drops an earlier run's inputs
+    return _LOADED
+
+
+def _forget(run: str) -> None:
+    global _LOADED
+    if _LOADED is not None and _LOADED.run == run:
+        _LOADED = None
+
+
+@contextmanager
+def _one_thread() -> Iterator[None]:
+    """torch and the BLAS / OpenMP pools on one thread: scores that do not depend on the worker's threads."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with threadpool_limits(limits=1):
+            yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def score_condition(task: ScoringTask) -> ConditionScores:
+    """Cut one condition's windows and score them with every model (runs in a worker).
+
+    The episodes are read and the models loaded on this process's first task of the run, then reused.
+    """
+    with _one_thread():
+        inputs = _loaded(task.run)
+        if inputs.streams is None:
+            inputs.streams = episode_streams(task.data, task.rows)
+        if inputs.detectors is None:
+            inputs.detectors = [methods.load_detector(folder)[1] for folder in task.models]
+        windows, touched = cut_windows(
+            inputs.streams, task.rows, task.perturbation, task.seed, dict(task.episode_index)
+        )
+        scores = tuple(np.asarray(d.score(windows)) for d in inputs.detectors)
+    return ConditionScores(scores=scores, mirrored_windows=touched)
 
 
 # --- measuring ------------------------------------------------------------------------------------------
@@ -278,30 +379,56 @@ def run_robustness(
     config: RobustnessConfig,
     rows: Sequence[WindowRow],
     progress: bool = False,
+    executor: Executor | None = None,
 ) -> RobustnessResult:
-    """Score every model on the clean and every perturbed version of the test windows `rows`."""
+    """Score every model on the clean and every perturbed version of the test windows `rows`.
+
+    One task per condition runs on `executor` (default: in this process, `LocalExecutor(1)`); tasks that
+    run in this process use `models` as they are, those in other processes load them from their folders.
+    The results are the same bit for bit with any executor.
+    """
     rows = list(rows)
     kinds = np.array([r.kind for r in rows]).astype(str)
     episodes = np.array([r.episode for r in rows]).astype(str)
     positive = kinds != "normal"
     weights = episode_draws(episodes, positive, config.replicates, config.bootstrap_seed)
-    episode_index = {e["episode_id"]: i for i, e in enumerate(dataset.manifest["episodes"])}
-    streams = episode_streams(dataset, rows, progress=progress)
-    by_method: dict[str, list[TrainedModel]] = {}
-    for m in models:
-        by_method.setdefault(m.method, []).append(m)
+    manifest_index = {e["episode_id"]: i for i, e in enumerate(dataset.manifest["episodes"])}
+    missing = sorted({r.episode for r in rows} - set(manifest_index))
+    if missing:
+        raise DatasetError(f"{dataset.path}: test episode {missing[0]} is not in manifest.json")
+    episode_index = tuple((e, manifest_index[e]) for e in dict.fromkeys(r.episode for r in rows))
+    by_method: dict[str, list[int]] = {}
+    for i, m in enumerate(models):
+        by_method.setdefault(m.method, []).append(i)
+    conditions: list[Perturbation | None] = [None, *config.perturbations]
+    run = uuid.uuid4().hex
+    tasks = [
+        ScoringTask(
+            run=run,
+            data=Path(dataset.path).absolute(),
+            models=tuple(Path(m.path).absolute() for m in models),
+            rows=tuple(rows),
+            episode_index=episode_index,
+            perturbation=condition,
+            seed=config.seed,
+        )
+        for condition in conditions
+    ]
+    _loaded(run).detectors = [m.detector for m in models]  # what tasks run here use
+    try:
+        scored = (executor or LocalExecutor(1)).map(
+            score_condition, tasks, desc="perturbing and scoring", progress=progress
+        )
+    finally:
+        _forget(run)
     collision = ~positive | (kinds == "collision")
     mechanical = ~positive | (kinds == "mechanical")
     clean_boot: dict[str, BootstrapAuc] = {}
     results: list[ConditionResult] = []
-    conditions: list[Perturbation | None] = [None, *config.perturbations]
-    bar = tqdm(conditions, desc="perturbing and scoring", unit="cond", disable=not progress)
-    for condition in bar:
-        bar.set_postfix_str("clean" if condition is None else f"{condition.kind} {condition.label}")
-        windows, touched = cut_windows(streams, rows, condition, config.seed, episode_index)
-        for method, runs in by_method.items():
-            scored = [finite_scores(np.asarray(m.detector.score(windows))) for m in runs]
-            scores = [s for s, _ in scored]
+    for condition, condition_scores in zip(conditions, scored, strict=True):
+        for method, indices in by_method.items():
+            finite = [finite_scores(condition_scores.scores[i]) for i in indices]
+            scores = [s for s, _ in finite]
             boot = bootstrap_mean_auc(np.stack(scores), positive, episodes, weights)
             if condition is None:
                 clean_boot[method] = boot
@@ -316,13 +443,13 @@ def run_robustness(
                     delta=boot.minus(clean),
                     auc_collision=_subset_auc(scores, positive, collision),
                     auc_mechanical=_subset_auc(scores, positive, mechanical),
-                    nonfinite_scores=sum(n for _, n in scored),
-                    mirrored_windows=touched,
+                    nonfinite_scores=sum(n for _, n in finite),
+                    mirrored_windows=condition_scores.mirrored_windows,
                 )
             )
     return RobustnessResult(
         config=config,
-        methods={name: [m.path for m in runs] for name, runs in by_method.items()},
+        methods={name: [models[i].path for i in indices] for name, indices in by_method.items()},
         results=results,
         normal_episodes=len(set(episodes[~positive])),
         anomalous_episodes=len(set(episodes[positive])),

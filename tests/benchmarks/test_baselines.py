@@ -129,7 +129,12 @@ def test_registry_errors(tmp_path: Path) -> None:
         methods.make("audio-rms", seed=0, scale="huge")
     with pytest.raises(ValueError, match="already registered"):
         methods.register(
-            "audio-rms", lambda s, c, d: naive.AudioRMS(), family="naive", modality="audio", description=""
+            "audio-rms",
+            lambda s, c, d: naive.AudioRMS(),
+            cls=naive.AudioRMS,
+            family="naive",
+            modality="audio",
+            description="",
         )
     assert set(methods.names("naive")) == {"audio-rms", "imu-kurtosis"}
     with pytest.raises(FileNotFoundError, match=r"method\.json"):

@@ -7,7 +7,6 @@ import operator
 import shutil
 import socket
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -37,19 +36,7 @@ def _ray_available() -> bool:
 
 needs_ray = pytest.mark.skipif(
     not _ray_available(), reason="ray is not installed (pip install -c constraints.txt -e '.[ray]')"
-)
-
-
-@pytest.fixture(scope="module")
-def local_ray() -> Iterator[None]:
-    """A small Ray on this machine (2 CPUs, no dashboard), shut down after the module."""
-    import ray
-
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, object_store_memory=100 * 1024**2)
-    try:
-        yield
-    finally:
-        ray.shutdown()
+)  # the `local_ray` fixture is in conftest.py
 
 
 def _seed_after_pause(spec: ds.EpisodeSpec) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -279,28 +280,40 @@ def test_the_command_lists_every_kind() -> None:
 # --- end to end ---------------------------------------------------------------------------------------------
 
 
-def test_robustness_end_to_end_on_tiny(tiny_dataset: Path, tiny_model: Path, tmp_path: Path) -> None:
+CHOSEN = ["offset=-50,0", "drift=500", "jitter=0.5", "imu-drop=5", "audio-gap=50", "audio-missing",
+          "imu-missing"]  # fmt: skip
+"""One severity per kind (and offset 0, the identity)."""
+
+
+def _robustness_argv(data: Path, model: Path, out: Path, *extra: str) -> list[str]:
+    return ["robustness", "--data", str(data), "--models", str(model.parent), "--out", str(out),
+            "--no-progress", "--perturbations", *CHOSEN, *extra]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def in_process_run(tiny_dataset: Path, tiny_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`robustness` on `tiny` with every task in this process (--workers 1); its output folder."""
+    out = tmp_path_factory.mktemp("robustness") / "robust"
+    assert main(_robustness_argv(tiny_dataset, tiny_model, out, "--workers", "1")) == 0
+    return out
+
+
+def _without_command(doc: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in doc.items() if k not in ("command", "date")}
+
+
+def test_robustness_end_to_end_on_tiny(
+    tiny_dataset: Path, tiny_model: Path, in_process_run: Path, tmp_path: Path
+) -> None:
     evaluated = tmp_path / "eval"
     assert main(["evaluate", "--data", str(tiny_dataset), "--model", str(tiny_model), "--out", str(evaluated),
                  "--no-progress"]) == 0  # fmt: skip
     reported = json.loads((evaluated / "results.json").read_text())["methods"]["msvdd"]
 
-    out = tmp_path / "robust"
-    chosen = [
-        "offset=-50,0",
-        "drift=500",
-        "jitter=0.5",
-        "imu-drop=5",
-        "audio-gap=50",
-        "audio-missing",
-        "imu-missing",
-    ]
-    argv = ["robustness", "--data", str(tiny_dataset), "--models", str(tiny_model.parent), "--out", str(out),
-            "--no-progress", "--perturbations", *chosen]  # fmt: skip
-    assert main(argv) == 0
+    out = in_process_run
     for name in ("robustness.md", "robustness.json", "robustness.png"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
-    assert not list(tmp_path.glob(".robust.partial-*"))
+    assert not list(out.parent.glob(".robust.partial-*"))
     doc = json.loads((out / "robustness.json").read_text())
     results = doc["results"]
     clean = next(r for r in results if r["perturbation"] == "clean")
@@ -321,7 +334,37 @@ def test_robustness_end_to_end_on_tiny(tiny_dataset: Path, tiny_model: Path, tmp
     table = (out / "robustness.md").read_text()
     assert "| offset | -50 ms |" in table and "| audio-gap | 50 ms per s |" in table
     assert doc["perturbations"]["offset"]["severities"] == [-50.0, 0.0]
-    assert main(argv) == 2  # the output folder exists now
+    assert main(_robustness_argv(tiny_dataset, tiny_model, out)) == 2  # the output folder exists now
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_any_executor_gives_the_in_process_results_bit_for_bit(
+    executor: str,
+    tiny_dataset: Path,
+    tiny_model: Path,
+    in_process_run: Path,
+    tmp_path: Path,
+    request: pytest.FixtureRequest,
+) -> None:
+    if executor == "ray":
+        pytest.importorskip("ray", reason="ray is not installed (pip install -c constraints.txt -e '.[ray]')")
+        request.getfixturevalue("local_ray")  # 2 CPUs: two tasks at a time, in other processes
+        extra = ["--executor", "ray"]
+    else:
+        extra = ["--workers", "2"]
+    out = tmp_path / "robust"
+    assert main(_robustness_argv(tiny_dataset, tiny_model, out, *extra)) == 0
+    doc = json.loads((out / "robustness.json").read_text())
+    reference = json.loads((in_process_run / "robustness.json").read_text())
+    assert _without_command(doc) == _without_command(reference)
+    assert doc["results"] == reference["results"]  # every AUC, interval, ratio and count, bit for bit
+
+
+def test_bad_executor_flags_are_refused_before_any_work(tiny_dataset: Path, tmp_path: Path) -> None:
+    base = ["robustness", "--data", str(tiny_dataset), "--models", str(tmp_path / "none"), "--no-progress"]
+    assert main([*base, "--out", str(tmp_path / "a"), "--address", "10.0.0.5:6379"]) == 2  # needs ray
+    assert main([*base, "--out", str(tmp_path / "b"), "--workers", "0"]) == 2
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
 def test_models_must_be_model_or_run_folders(tiny_dataset: Path, tmp_path: Path) -> None:

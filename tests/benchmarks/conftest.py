@@ -1,0 +1,19 @@
+"""Fixtures shared by the benchmark tests: a small local Ray (test_executor.py, test_robustness.py)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def local_ray() -> Iterator[None]:
+    """A small Ray on this machine (2 CPUs, no dashboard), shut down after the module."""
+    import ray
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, object_store_memory=100 * 1024**2)
+    try:
+        yield
+    finally:
+        ray.shutdown()

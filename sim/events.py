@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim import vocab
-from sim.scenario import Scenario
+from sim.scenario import TRANSIENT_HEIGHT, Scenario
 from sim.trace import ContactEvents, FaultRecord, ObstacleRecord, TransientEvents
 
 MERGE_GAP = 0.05
@@ -126,6 +126,7 @@ def transient_events(
         wheel=np.array([r[2] for r in rows], dtype=np.int64),
         impulse=np.array([r[3] for r in rows], dtype=np.float64),
         kind=tuple(r[4] for r in rows),
+        height=np.array([TRANSIENT_HEIGHT[r[4]] for r in rows], dtype=np.float64),
     )
 
 

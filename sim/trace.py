@@ -113,6 +113,8 @@ class TransientEvents:
     meanwhile; the audio's loudness comes from `synth_audio.transients.strike_impulse` instead)."""
     kind: tuple[str, ...]
     """(n,) transient kind (see `sim.vocab.TRANSIENT_KINDS`)."""
+    height: np.ndarray
+    """(n,) height of the floor feature, m: the step the wheel climbs (what the audio's strike needs)."""
 
 
 @dataclass(frozen=True)

@@ -86,8 +86,8 @@ def decode(arrays: dict[str, np.ndarray], version: int) -> dict[str, np.ndarray]
         KeyError: a stored array is missing (named).
     """
     if version == 1:
-        return dict(arrays)
-    out = decode_floats(arrays)
+        return _with_transient_heights(dict(arrays))
+    out = _with_transient_heights(decode_floats(arrays))
     n, m = out["wheel_speed"].shape[0], out["label"].shape[0]
     if "time" not in out:
         out["time"] = _time(out["physics_dt"], n)
@@ -100,6 +100,17 @@ def decode(arrays: dict[str, np.ndarray], version: int) -> dict[str, np.ndarray]
         out["mic_pos"] = _mic_pos(out, np.asarray(out["robot.mic_pos_body"], dtype=np.float64))
     else:
         out["mic_pos"] = np.asarray(out["mic_pos"], dtype=np.float64)
+    return out
+
+
+def _with_transient_heights(out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Traces written before the transient events carried their feature heights get them from the
+    scenario's table (`sim.scenario.TRANSIENT_HEIGHT`), the values the simulator built the features with."""
+    if "transients.height" not in out and "transients.kind" in out:
+        from sim.scenario import TRANSIENT_HEIGHT
+
+        kinds = [str(k) for k in np.asarray(out["transients.kind"]).ravel()]
+        out["transients.height"] = np.array([TRANSIENT_HEIGHT[k] for k in kinds], dtype=np.float64)
     return out
 
 

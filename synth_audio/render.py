@@ -116,7 +116,9 @@ def _robot_buses(
         wheel = int(tr.wheel[i])
         t = float(tr.time[i])
         speed = float(np.interp(t, drive.block_time, drive.speed_mps[wheel]))
-        strike = strike_impulse(tr.kind[i], speed, float(robot.wheel_radius[wheel]), corner_mass)
+        strike = strike_impulse(
+            tr.kind[i], float(tr.height[i]), speed, float(robot.wheel_radius[wheel]), corner_mass
+        )
         sound = transient(tr.kind[i], strike, speed, sr, tr_rng)
         add_at(buses["transients"][wheel], round(t * sr), sound)
     buses["electronics"] = bus()

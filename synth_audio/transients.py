@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.scenario import TRANSIENT_HEIGHT
 from synth_audio.dsp import add_at
 from synth_audio.impacts import IMPACT_SCALE, Material, struck_response
 
@@ -32,7 +31,9 @@ GRAVITY = 9.81
 """m/s^2."""
 
 
-def strike_impulse(kind: str, wheel_speed_mps: float, wheel_radius: float, corner_mass: float) -> float:
+def strike_impulse(
+    kind: str, height: float, wheel_speed_mps: float, wheel_radius: float, corner_mass: float
+) -> float:
     """Vertical momentum a wheel exchanges with a floor feature, N s.
 
     A wheel of radius r rolling at v into a step of height h first touches it at angle
@@ -41,7 +42,7 @@ def strike_impulse(kind: str, wheel_speed_mps: float, wheel_radius: float, corne
     h: dv_z = sqrt(2 g h). The robot has no suspension, so the moving mass is the wheel's corner of the
     robot, `corner_mass` (total mass / wheels).
     """
-    h = TRANSIENT_HEIGHT[kind]
+    h = float(height)
     v = abs(float(wheel_speed_mps))
     if kind == "kerb_ramp":
         dv = max(v * h / 0.3, float(np.sqrt(2.0 * GRAVITY * h)))

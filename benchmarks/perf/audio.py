@@ -8,6 +8,7 @@ import time
 import numpy as np
 
 from benchmarks.perf.base import PerfStage
+from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEvents
 
 
@@ -50,6 +51,7 @@ def workload(duration: float, environment: str = "indoor") -> Trace:
         wheel=rng.integers(0, 4, m),
         impulse=rng.uniform(0.5, 3, m),
         kind=("seam", "cable") * k,
+        height=np.array([TRANSIENT_HEIGHT[kind] for kind in ("seam", "cable") * k]),
     )
     imu_n = int(duration * 200) + 1
     return Trace(

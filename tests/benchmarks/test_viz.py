@@ -60,8 +60,9 @@ def tiny_trace(faults: tuple[tuple[int, float, float], ...] = ((1, 1.5, 1.0),)) 
         np.array([0.4]), np.array([0.05]), ("wall",), ("plaster",),
     )  # fmt: skip
     transients = TransientEvents(
-        np.array([0.7]), np.array([[0.5, 0.8, 0.0]]), np.array([2]), np.array([0.3]), ("seam",)
-    )
+        np.array([0.7]), np.array([[0.5, 0.8, 0.0]]), np.array([2]), np.array([0.3]), ("seam",),
+        np.array([0.004]),
+    )  # fmt: skip
     fault_records = tuple(FaultRecord("bearing", w, 0.6, on, d, 3.57, 2100.0, 0.04) for w, on, d in faults)
     imu_time = np.arange(m) / IMU_RATE
     label = np.zeros(m, np.int8)

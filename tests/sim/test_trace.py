@@ -36,7 +36,9 @@ def _tiny_trace() -> Trace:
         np.array([0.5]), np.ones((1, 3)), np.array([[1.0, 0, 0]]), np.array([12.5]), np.array([1.2]),
         np.array([0.05]), ("wall",), ("plaster",),
     )  # fmt: skip
-    transients = TransientEvents(np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0), ())
+    transients = TransientEvents(
+        np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0), (), np.zeros(0)
+    )
     return Trace(
         "tiny", 7, "indoor", "tile", 1.0, 0.002, 200.0, robot, np.array([5.0, 4.0]),
         np.arange(n) * 0.002, rng.normal(size=(n, 2)), rng.normal(size=(n, 2)), rng.normal(size=(n, 2)),
@@ -134,6 +136,22 @@ def test_a_format_1_file_is_read_bit_for_bit(simulated: Trace, tmp_path: Path) -
     for name, value in _flatten(simulated).items():
         if name != "format_version":
             np.testing.assert_array_equal(_flatten(loaded)[name], value, err_msg=name)
+
+
+def test_transient_heights_travel_in_the_trace_and_older_files_get_the_simulators(
+    simulated: Trace, tmp_path: Path
+) -> None:
+    """The audio's strike needs each floor feature's height: a simulated trace carries the heights the world
+    was built with; a file written before the field existed gets the same values from the scenario table."""
+    from sim.scenario import TRANSIENT_HEIGHT
+
+    tr = simulated.transients
+    assert len(tr.kind) > 0, "the fixture crosses no floor feature"
+    np.testing.assert_array_equal(tr.height, [TRANSIENT_HEIGHT[k] for k in tr.kind])
+    arrays = {k: v for k, v in _flatten(simulated).items() if k != "transients.height"}
+    arrays["format_version"] = np.asarray(1)
+    np.savez_compressed(tmp_path / "old.npz", **arrays)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(Trace.load(tmp_path / "old.npz").transients.height, tr.height)
 
 
 def test_a_non_finite_signal_survives_the_round_trip(tmp_path: Path) -> None:

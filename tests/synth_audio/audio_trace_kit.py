@@ -6,6 +6,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEvents
 
 DT = 0.002
@@ -74,6 +75,7 @@ def transients(
         wheel=np.asarray(wheels, dtype=np.int64),
         impulse=np.asarray(impulses, dtype=float),
         kind=tuple(kinds),
+        height=np.array([TRANSIENT_HEIGHT[k] for k in kinds], dtype=float),
     )
 
 

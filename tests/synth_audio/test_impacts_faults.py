@@ -94,14 +94,14 @@ def test_strike_impulse_is_the_corner_mass_turning_over_the_step(kind: str) -> N
     # that angle, so the corner of the robot gains dv_z = v sin(theta).
     h, r, v, m = TRANSIENT_HEIGHT[kind], 0.08, 1.2, 5.0
     expected = m * v * np.sqrt(1.0 - (1.0 - h / r) ** 2)
-    assert strike_impulse(kind, v, r, m) == pytest.approx(expected, rel=1e-12)
-    assert strike_impulse(kind, -v, r, m) == pytest.approx(expected, rel=1e-12)
-    assert strike_impulse(kind, 0.0, r, m) == 0.0
+    assert strike_impulse(kind, h, v, r, m) == pytest.approx(expected, rel=1e-12)
+    assert strike_impulse(kind, h, -v, r, m) == pytest.approx(expected, rel=1e-12)
+    assert strike_impulse(kind, h, 0.0, r, m) == 0.0
 
 
 def test_kerb_ramp_strike_is_the_drop_off_its_far_edge() -> None:
     h = TRANSIENT_HEIGHT["kerb_ramp"]
-    assert strike_impulse("kerb_ramp", 0.5, 0.08, 5.0) == pytest.approx(5.0 * np.sqrt(2 * 9.81 * h))
+    assert strike_impulse("kerb_ramp", h, 0.5, 0.08, 5.0) == pytest.approx(5.0 * np.sqrt(2 * 9.81 * h))
 
 
 def test_impact_impulse_keeps_a_bounce_and_drops_the_push() -> None:
@@ -126,6 +126,6 @@ def test_a_wall_hit_is_louder_than_a_cable_crossed_faster(quiet: AudioConfig) ->
     )
     e_cable = float(np.sum(render(cable, quiet, seed=1).stems["transients"].astype(np.float64) ** 2))
     e_wall = float(np.sum(render(wall, quiet, seed=1).stems["impacts"].astype(np.float64) ** 2))
-    strike = strike_impulse("cable", 1.2, radius, corner)
+    strike = strike_impulse("cable", TRANSIENT_HEIGHT["cable"], 1.2, radius, corner)
     assert strike < 0.2 * hit
     assert 10 * np.log10(e_wall / e_cable) > 10.0

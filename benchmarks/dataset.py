@@ -303,6 +303,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         duration_s=spec.duration_s,
     )
     directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f"{_STAGING}{spec.episode_id}-", dir=directory))
     try:
         written = write_episode(staging / spec.episode_id, meta, scenario.to_dict(), trace, audio)

@@ -21,6 +21,7 @@ A bad spec is refused with one line naming the file, the key, the value and what
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import math
 import tomllib
 from dataclasses import dataclass
@@ -226,9 +227,9 @@ def resolve_spec(name: str | Path) -> Path:
     path = Path(name)
     if path.is_file():
         return path
-    shipped = resources.files(SPECS_PACKAGE).joinpath(f"{path.stem}.toml")
+    shipped = _specs_dir() / f"{path.stem}.toml"
     if path.suffix in ("", ".toml") and path.parent == Path(".") and shipped.is_file():
-        return Path(str(shipped))
+        return shipped
     raise InputNotFoundError(
         f"sweep spec not found: {name} (a TOML file, or one of: {', '.join(shipped_specs())})"
     )
@@ -236,11 +237,17 @@ def resolve_spec(name: str | Path) -> Path:
 
 def shipped_specs() -> list[str]:
     """Names of the example specs in `assets/sweeps/`."""
-    return sorted(
-        p.name.removesuffix(".toml")
-        for p in resources.files(SPECS_PACKAGE).iterdir()
-        if p.name.endswith(".toml")
-    )
+    return sorted(p.name.removesuffix(".toml") for p in _specs_dir().glob("*.toml"))
+
+
+def _specs_dir() -> Path:
+    """The folder of the shipped specs. `importlib.resources.files` fails on Python 3.11 for a namespace
+    package installed in editable mode (see `sim.robot.asset_path`), so the package's paths are searched."""
+    package = importlib.import_module(SPECS_PACKAGE)
+    for entry in getattr(package, "__path__", []):
+        if Path(entry).is_dir():
+            return Path(entry)
+    return Path(str(resources.files(SPECS_PACKAGE)))
 
 
 def load_spec(name: str | Path) -> SweepSpec:

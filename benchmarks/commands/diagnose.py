@@ -17,7 +17,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--max-windows", type=int, default=3000, help="windows read per split (seeded, stratified subsample)"
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the subsampling")
+    p.add_argument("--subsample-seed", type=int, default=0, help="seed of the subsampling of windows")
     p.add_argument("--verify", action="store_true", help="check every dataset file's sha256 first")
     add_progress_argument(p)
 
@@ -28,7 +28,12 @@ def _run(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else args.model / "diagnosis"
     check_output(out)  # before the work, not after it
     result = diagnose(
-        args.model, args.data, args.max_windows, args.seed, verify=args.verify, progress=not args.no_progress
+        args.model,
+        args.data,
+        args.max_windows,
+        args.subsample_seed,
+        verify=args.verify,
+        progress=not args.no_progress,
     )
     write_diagnosis(result, out)
     print(diagnosis_markdown(result))

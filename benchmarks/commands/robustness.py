@@ -45,7 +45,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="KIND[=S1,S2,...]",
         help="kinds to apply, each at its default severities or at the ones given after '='",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the perturbations' random draws")
+    p.add_argument("--perturbation-seed", type=int, default=0, help="seed of the perturbations' random draws")
     add_executor_arguments(
         p,
         what="the conditions are scored (one task per perturbation and severity, and the clean windows)",
@@ -74,7 +74,9 @@ def _run(args: argparse.Namespace) -> int:
         raise OutputExistsError(
             f"--out {args.out}: the folder exists already; allowed: a path that does not exist"
         )
-    config = RobustnessConfig(perturbations=parse_perturbations(args.perturbations), seed=args.seed)
+    config = RobustnessConfig(
+        perturbations=parse_perturbations(args.perturbations), seed=args.perturbation_seed
+    )
     executor = make_executor(args.executor, workers=args.workers, address=args.address)  # checks the flags
     with contextlib.closing(executor):
         folders = model_folders(args.models)

@@ -48,7 +48,13 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
     )
     p.add_argument(
-        "--seeds", type=int, nargs="+", default=None, help="training seeds (default: the preset's)"
+        "--train-seeds",
+        "--seeds",
+        dest="train_seeds",
+        type=int,
+        nargs="+",
+        default=None,
+        help="training seeds of every method (default: the preset's; --seeds is the former name)",
     )
     add_device_argument(p)
     add_progress_argument(p)
@@ -68,7 +74,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
             data=args.data,
             workers=None,
             scale=args.scale,
-            seeds=args.seeds,
+            seeds=args.train_seeds,
             command="msvdd-bench " + " ".join(sys.argv[1:]),
             progress=not args.no_progress,
             dev=args.dev,

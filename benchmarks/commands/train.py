@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from benchmarks.command import Command, add_device_argument, add_progress_argument
-from benchmarks.errors import OutputExistsError
+from benchmarks.errors import OutputExistsError, check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
@@ -17,7 +17,12 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="method name (see `msvdd-bench methods`), or module:Class for a detector of your own",
     )
     p.add_argument("--out", type=Path, required=True, help="model folder to write")
-    p.add_argument("--seed", type=int, default=0, help="training seed")
+    p.add_argument(
+        "--train-seed",
+        type=int,
+        default=0,
+        help="training seed (initial weights, batches), not the dataset's",
+    )
     p.add_argument(
         "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
     )
@@ -37,10 +42,16 @@ def _run(args: argparse.Namespace) -> int:
     dataset = open_dataset(args.data, progress=progress)
     scale = args.scale or dataset.preset.method_scale
     model = train_method(
-        dataset, args.method, args.seed, scale, args.out, device=args.device, progress=progress
+        dataset,
+        args.method,
+        check_seed(args.train_seed, "--train-seed"),
+        scale,
+        args.out,
+        device=args.device,
+        progress=progress,
     )
     print(
-        f"trained {args.method} (seed {args.seed}, scale {scale}) in {model.train_seconds:.1f} s; "
+        f"trained {args.method} (seed {args.train_seed}, scale {scale}) in {model.train_seconds:.1f} s; "
         f"threshold {model.detector.threshold_:.6g}; saved to {model.path}"
     )
     return 0
@@ -52,7 +63,7 @@ COMMAND = Command(
     add_arguments=_add_arguments,
     run=_run,
     example=(
-        "msvdd-bench train --data runs/demo/dataset --method msvdd --out runs/models/msvdd-seed1 --seed 1\n"
+        "msvdd-bench train --data runs/demo/dataset --method msvdd --out runs/m/msvdd-s1 --train-seed 1\n"
         "msvdd-bench train --data runs/demo/dataset --method iforest-early --out runs/models/iforest"
     ),
 )

@@ -65,7 +65,7 @@ class RobustnessConfig:
     """Seed of the episode draws (the same draws for every method and perturbation)."""
 
     def __post_init__(self) -> None:
-        check_seed(self.seed)
+        check_seed(self.seed, "--perturbation-seed")
         if not self.perturbations:
             raise UserError(
                 "--perturbations: no perturbation given; allowed: one or more of " + ", ".join(KINDS)

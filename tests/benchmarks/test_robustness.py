@@ -263,7 +263,7 @@ def test_bad_perturbations_are_one_line_user_errors_naming_field_value_and_range
         parse_perturbations(["imu-missing=50"])
     with pytest.raises(UserError, match="no perturbation given"):
         RobustnessConfig(perturbations=())
-    with pytest.raises(UserError, match="--seed"):
+    with pytest.raises(UserError, match="--perturbation-seed"):
         RobustnessConfig(perturbations=parse_perturbations(["drift"]), seed=-1)
     parsed = parse_perturbations(["offset=-20,5", "drift", "offset=5"])
     assert [(p.kind, p.severity) for p in parsed] == [

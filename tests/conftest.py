@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 import torch
+from threadpoolctl import threadpool_limits
 
-torch.set_num_threads(2)
+if os.environ.get("PYTEST_XDIST_WORKER"):  # `make test` runs one worker per core: one thread each
+    torch.set_num_threads(1)
+    threadpool_limits(1)
+else:
+    torch.set_num_threads(2)
 
 
 @pytest.fixture(scope="session")

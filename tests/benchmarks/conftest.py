@@ -7,9 +7,9 @@ from collections.abc import Iterator
 import pytest
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def local_ray() -> Iterator[None]:
-    """A small Ray on this machine (2 CPUs, no dashboard), shut down after the module."""
+    """A small Ray on this machine (2 CPUs, no dashboard), started once and shut down after the session."""
     import ray
 
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, object_store_memory=100 * 1024**2)

@@ -60,6 +60,7 @@ def test_episode_seeds_come_from_the_dataset_seed_and_the_index_only() -> None:
 
 
 @needs_ray
+@pytest.mark.xdist_group("ray")  # with `pytest -n`, the tests that start Ray share one worker
 def test_ray_gives_the_same_checksums_as_local_processes(
     tiny_dataset: Path, tmp_path: Path, local_ray: None
 ) -> None:
@@ -72,6 +73,7 @@ def test_ray_gives_the_same_checksums_as_local_processes(
 
 
 @needs_ray
+@pytest.mark.xdist_group("ray")  # with `pytest -n`, the tests that start Ray share one worker
 def test_ray_keeps_task_order_and_reraises_a_tasks_own_error(local_ray: None) -> None:
     # Ray workers import what a task names: functions of installed modules (this test file is not one).
     executor = RayExecutor()
@@ -117,6 +119,7 @@ def _closed_port() -> int:
 
 
 @needs_ray
+@pytest.mark.xdist_group("ray")  # with `pytest -n`, the tests that start Ray share one worker
 def test_an_unreachable_address_is_a_fast_one_line_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -146,6 +149,7 @@ def test_bad_executor_options_are_refused(kind: str, kwargs: dict[str, object], 
 
 
 @needs_ray
+@pytest.mark.xdist_group("ray")  # with `pytest -n`, the tests that start Ray share one worker
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

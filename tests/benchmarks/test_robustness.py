@@ -337,6 +337,7 @@ def test_robustness_end_to_end_on_tiny(
     assert main(_robustness_argv(tiny_dataset, tiny_model, out)) == 2  # the output folder exists now
 
 
+@pytest.mark.xdist_group("ray")
 @pytest.mark.parametrize("executor", ["local", "ray"])
 def test_any_executor_gives_the_in_process_results_bit_for_bit(
     executor: str,

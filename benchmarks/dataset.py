@@ -479,6 +479,9 @@ def generate(
     return out
 
 
+LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}
+"""Training budgets of manifests written when budgets shared the dataset presets' names."""
+
 MANIFEST_FILE, WINDOWS_FILE = "manifest.json", "windows.csv"
 """The dataset folder's own files (each episode's are `benchmarks.episode`'s)."""
 
@@ -517,6 +520,8 @@ class Dataset:
         fields: dict[str, Any] = {
             k: tuple(v) if isinstance(v, list) else v for k, v in self.manifest["preset"].items()
         }
+        scale = str(fields.get("method_scale"))
+        fields["method_scale"] = LEGACY_SCALES.get(scale, scale)  # written before budgets were named apart
         return Preset(**fields)
 
     def episode_specs(self) -> dict[str, EpisodeSpec]:

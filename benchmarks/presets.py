@@ -173,7 +173,7 @@ _PRESETS: dict[str, Preset] = {
         test_units=(0, 1),
         train_hop_s=0.5,
         test_hop_s=2.0,
-        method_scale="tiny",
+        method_scale="smoke",
         seeds=(0,),
         methods=("msvdd", "iforest-early", "audio-rms"),
         obstacle_kinds=("wall", "box"),
@@ -199,7 +199,7 @@ _PRESETS: dict[str, Preset] = {
         test_units=(0, 1, 2),
         train_hop_s=1.0,
         test_hop_s=2.0,
-        method_scale="quick",
+        method_scale="short",
         seeds=(0,),
         methods=QUICK_METHODS,
         wheels=(0, 3),
@@ -225,7 +225,7 @@ _PRESETS: dict[str, Preset] = {
         test_units=(0, 1, 2, 3),
         train_hop_s=1.0,
         test_hop_s=1.0,
-        method_scale="paper",
+        method_scale="full",
         seeds=(0, 1, 2),
         methods=TABLE1_METHODS,
     ),
@@ -262,7 +262,7 @@ _PRESETS["hard"] = dataclasses.replace(
 
 
 CI_METHODS: tuple[str, ...] = ("msvdd", "gaussian-early", "audio-rms")
-"""What the `ci` preset trains by default: M-SVDD at the quick scale, the reference detector and the naive
+"""What the `ci` preset trains by default: M-SVDD at the short budget, the reference detector and the naive
 audio RMS (the regression gate's reference points)."""
 
 _PRESETS["ci"] = dataclasses.replace(

@@ -31,4 +31,4 @@ def tiny_model(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> 
     from benchmarks.pipeline import train_method
 
     out = tmp_path_factory.mktemp("models") / "msvdd"
-    return train_method(open_dataset(tiny_dataset), "msvdd", 0, "tiny", out).path
+    return train_method(open_dataset(tiny_dataset), "msvdd", 0, "smoke", out).path

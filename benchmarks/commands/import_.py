@@ -52,8 +52,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     )
     shared.add_argument(
         "--scale",
-        default="quick",
-        help="training budget `train` uses on this dataset by default (tiny, quick, paper)",
+        default="short",
+        help="training budget `train` uses on this dataset by default (smoke, short, full)",
     )
     folder = p.add_argument_group("folder layout")
     folder.add_argument(

@@ -45,7 +45,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_executor_arguments(p, what="the episodes of a generated dataset are built")
     p.add_argument(
-        "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
+        "--scale", default=None, help="training budget: smoke, short or full (default: the dataset preset's)"
     )
     p.add_argument(
         "--train-seeds",

@@ -24,7 +24,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="training seed (initial weights, batches), not the dataset's",
     )
     p.add_argument(
-        "--scale", default=None, help="training budget: tiny, quick or paper (default: the preset's)"
+        "--scale", default=None, help="training budget: smoke, short or full (default: the dataset preset's)"
     )
     add_device_argument(p)
     add_progress_argument(p)

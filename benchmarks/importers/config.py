@@ -48,8 +48,8 @@ class ImportConfig:
     """Hop between 2 s windows of training and validation recordings, s."""
     test_hop_s: float = 2.0
     """Hop between 2 s windows of test recordings, s."""
-    scale: str = "quick"
-    """Training budget `train` uses on the dataset by default (tiny, quick, paper)."""
+    scale: str = "short"
+    """Training budget `train` uses on the dataset by default (smoke, short, full)."""
     anomaly_kind: str = "mechanical"
     """Kind of an anomaly whose source does not say (`collision` or `mechanical`)."""
     channels: tuple[int, ...] | None = None

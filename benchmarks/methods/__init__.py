@@ -1,7 +1,7 @@
 """Every detector the benchmark runs, by name: M-SVDD, its ablations and the paper's baselines.
 
 from benchmarks.methods import make, names
-det = make("iforest-early", seed=0, scale="quick").fit(train)
+det = make("iforest-early", seed=0, scale="short").fit(train)
 save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("runs/x/model")
 """
 

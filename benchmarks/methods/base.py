@@ -12,15 +12,18 @@ from benchmarks.errors import UserError
 from benchmarks.methods._io import load_npz, save_npz
 from msvdd.contract import Detector, NotFittedError
 
-SCALES: tuple[str, ...] = ("tiny", "quick", "paper")
-"""Training budgets every method understands: tiny (seconds, tests), quick (make demo), paper."""
-
-
+SCALES: tuple[str, ...] = ("smoke", "short", "full")
+"""Training budgets every method understands: smoke (seconds: tests), short (minutes: `make demo`), full
+(the paper's budget). Named apart from the dataset presets (tiny, quick, paper, ...), whose `method_scale`
+says which budget each uses by default."""
 
 def check_scale(scale: str) -> str:
     """Return `scale` if it is one of `SCALES`, else raise a UserError naming the allowed values."""
     if scale not in SCALES:
-        raise UserError(f"scale {scale!r} is unknown; allowed: {', '.join(SCALES)}")
+        from benchmarks.presets import preset_names
+
+        hint = " (that names a dataset preset; budgets are named apart)" if scale in preset_names() else ""
+        raise UserError(f"scale {scale!r} is unknown; allowed: {', '.join(SCALES)}{hint}")
     return scale
 
 

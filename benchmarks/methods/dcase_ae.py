@@ -92,7 +92,7 @@ class DcaseAEConfig:
         ~20 s; tiny (80 windows): ~0.6 s.
         """
         check_scale(scale)
-        epochs = {"tiny": 5, "quick": 20, "paper": 20}[scale]
+        epochs = {"smoke": 5, "short": 20, "full": 20}[scale]
         return cls(seed=seed, epochs=epochs, device=device)
 
     def to_dict(self) -> dict[str, Any]:

@@ -33,9 +33,9 @@ SCORE_CHUNK = 256
 
 
 def scale_config(scale: str, seed: int, **overrides: Any) -> MSVDDConfig:
-    """M-SVDD's budget at `scale` (tiny, quick, paper), with `seed` and overrides."""
+    """M-SVDD's budget at `scale` (smoke, short, full: `MSVDDConfig.tiny`, `.quick`, `.paper`)."""
     check_scale(scale)
-    factory = {"tiny": MSVDDConfig.tiny, "quick": MSVDDConfig.quick, "paper": MSVDDConfig.paper}[scale]
+    factory = {"smoke": MSVDDConfig.tiny, "short": MSVDDConfig.quick, "full": MSVDDConfig.paper}[scale]
     return factory(seed=seed, **overrides)
 
 

@@ -45,7 +45,7 @@ class DeepIFConfig:
     def for_scale(cls, seed: int, scale: str) -> DeepIFConfig:
         """tiny 4 x 25 trees, quick 8 x 16, paper 16 x 12 (Xu et al. use many small forests)."""
         check_scale(scale)
-        reps, trees = {"tiny": (4, 25), "quick": (8, 16), "paper": (16, 12)}[scale]
+        reps, trees = {"smoke": (4, 25), "short": (8, 16), "full": (16, 12)}[scale]
         return cls(n_representations=reps, n_estimators=trees, seed=seed)
 
 

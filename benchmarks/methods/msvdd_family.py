@@ -6,8 +6,8 @@ dimension s. Two budget rules keep every variant trainable:
 
 - The MCD support of a training batch must be a true subset that can hold a full-rank covariance, so the
   batch grows with s: batch_size = max(scale's batch, 2 s) (s = 32 with batch 64 is the paper's support
-  fraction; s = 64 trains with batches of 128). At the tiny scale, max(batch, s + 8) keeps tests small.
-- At the tiny scale no validation split is held out (val_fraction = 0): the validation MCD needs more than s
+  fraction; s = 64 trains with batches of 128). At the smoke budget, max(batch, s + 8) keeps tests small.
+- At the smoke budget no validation split is held out (val_fraction = 0): the validation MCD needs more than s
   validation windows, more than a seconds-long test has.
 
 The registry builds `msvdd.model.MSVDD` itself (no wrapper): its threshold follows the one rule of
@@ -55,8 +55,8 @@ def msvdd_config(name: str, seed: int, scale: str, device: str = "cpu") -> MSVDD
     s = int(overrides.get("s", base.s))
     extra: dict[str, Any] = {}
     if overrides.get("use_mahalanobis", True):
-        extra["batch_size"] = max(base.batch_size, s + 8 if scale == "tiny" else 2 * s)
-    if scale == "tiny":
+        extra["batch_size"] = max(base.batch_size, s + 8 if scale == "smoke" else 2 * s)
+    if scale == "smoke":
         extra["val_fraction"] = 0.0
     return scale_config(scale, seed, **overrides, **extra, device=device)
 

@@ -107,7 +107,7 @@ def spec(name: str) -> MethodSpec:
 
 
 def make(name: str, *, seed: int, scale: str, device: str = "cpu", progress: bool | None = None) -> Detector:
-    """An unfitted detector of method `name` for `seed` and training `scale` (tiny, quick or paper).
+    """An unfitted detector of method `name` for `seed` and training `scale` (smoke, short or full).
 
     `device` (cpu, cuda, auto) is where the torch methods train and score; the others ignore it.
     `progress` turns the training progress bar of the torch methods on or off (None: the scale's

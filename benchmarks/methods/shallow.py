@@ -61,8 +61,8 @@ class ShallowConfig:
     def for_scale(cls, model: str, fusion: str, seed: int, scale: str) -> ShallowConfig:
         """The budget of each scale: tiny (tests), quick, paper."""
         check_scale(scale)
-        trees = {"tiny": 50, "quick": 100, "paper": 200}[scale]
-        rows = {"tiny": 300, "quick": 1500, "paper": 3000}[scale]
+        trees = {"smoke": 50, "short": 100, "full": 200}[scale]
+        rows = {"smoke": 300, "short": 1500, "full": 3000}[scale]
         return cls(model=model, fusion=fusion, seed=seed, n_estimators=trees, max_train=rows)
 
     def __post_init__(self) -> None:

@@ -28,7 +28,7 @@ def _measure(quick: bool) -> dict[str, float]:
         windows = preprocess.frame_windows(
             preprocess.decimate_audio(episode.audio), episode.imu_vel_z, np.arange(4) * 0.5, imu6=episode.imu6
         )
-        model = save_detector(make("audio-rms", seed=0, scale="tiny").fit(windows), "audio-rms", root / "m")
+        model = save_detector(make("audio-rms", seed=0, scale="smoke").fit(windows), "audio-rms", root / "m")
         started = time.perf_counter()
         plain = log_episode(root / "data", spec.episode_id, save=root / "plain.rrd")
         plain_s = time.perf_counter() - started

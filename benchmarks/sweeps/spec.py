@@ -5,7 +5,7 @@ title = "Fault severity"                   # optional (default: the file's name)
 base = "quick"                             # the preset every point derives from (`msvdd-bench presets`)
 seeds = [0]                                # dataset seeds: each point is generated once per seed
 methods = ["gaussian-early", "audio-rms"]  # methods or groups, as `run --methods` takes them
-scale = "quick"                            # optional training budget (default: the base preset's)
+scale = "short"                            # optional training budget (default: the base preset's)
 train_seeds = [0]                          # optional training seeds (default: the base preset's)
 axis = "severity"                          # one of AXES
 values = [0.1, 0.3, 0.6, 1.0]              # the points, in the axis's form
@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.errors import InputNotFoundError, UserError, check_seed
+from benchmarks.methods.base import SCALES
 from benchmarks.presets import Preset, get_preset
 from sim.random_scenarios import SPEED_SCALE_RANGE
 from sim.vocab import ENVIRONMENTS, FAULT_KINDS, OBSTACLE_KINDS, SURFACES
@@ -308,8 +309,8 @@ def parse_spec(doc: dict[str, Any], source: str) -> SweepSpec:
     if not (isinstance(methods, list) and methods and all(isinstance(m, str) for m in methods)):
         raise bad("methods", methods, "a non-empty list of method names or groups (msvdd-bench methods)")
     scale = doc.get("scale")
-    if scale is not None and scale not in ("tiny", "quick", "paper"):
-        raise bad("scale", scale, "tiny, quick, paper")
+    if scale is not None and scale not in SCALES:
+        raise bad("scale", scale, ", ".join(SCALES))
     title = doc.get("title", Path(source).stem)
     if not isinstance(title, str):
         raise bad("title", title, "a string")

@@ -63,15 +63,15 @@ def test_svdd_rows_equal_ocsvm_rows_by_construction() -> None:
     windows, _ = toy_windows(40, 8, seed=12)
     train, test = windows.subset(slice(0, 32)), windows.subset(slice(32, None))
     for fusion in ("early", "late"):
-        svdd = methods.make(f"svdd-{fusion}", seed=0, scale="tiny").fit(train)
-        ocsvm = methods.make(f"ocsvm-{fusion}", seed=0, scale="tiny").fit(train)
+        svdd = methods.make(f"svdd-{fusion}", seed=0, scale="smoke").fit(train)
+        ocsvm = methods.make(f"ocsvm-{fusion}", seed=0, scale="smoke").fit(train)
         np.testing.assert_array_equal(svdd.score(test), ocsvm.score(test))
         assert svdd.threshold_ == ocsvm.threshold_
 
 
 def test_model_of_the_former_svdd_solver_is_refused(tmp_path: Path) -> None:
     windows, _ = toy_windows(30, 0, seed=13)
-    det = methods.make("svdd-early", seed=0, scale="tiny").fit(windows)
+    det = methods.make("svdd-early", seed=0, scale="smoke").fit(windows)
     path = tmp_path / "model.npz"
     det.save(path)
     with np.load(path) as data:
@@ -108,7 +108,7 @@ def test_late_fusion_scores_are_z_normalised_per_modality() -> None:
 
 def test_refit_that_does_not_reproduce_training_scores_is_refused(tmp_path: Path) -> None:
     windows, _ = toy_windows(30, 0, seed=6)
-    det = methods.make("iforest-early", seed=0, scale="tiny").fit(windows)
+    det = methods.make("iforest-early", seed=0, scale="smoke").fit(windows)
     path = tmp_path / "model.npz"
     det.save(path)
     with np.load(path) as data:
@@ -122,11 +122,13 @@ def test_refit_that_does_not_reproduce_training_scores_is_refused(tmp_path: Path
 
 def test_registry_errors(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"allowed: .*iforest-early"):
-        methods.make("no-such-method", seed=0, scale="tiny")
+        methods.make("no-such-method", seed=0, scale="smoke")
     with pytest.raises(ValueError, match="device 'tpu'"):
-        methods.make("audio-rms", seed=0, scale="tiny", device="tpu")
+        methods.make("audio-rms", seed=0, scale="smoke", device="tpu")
     with pytest.raises(ValueError, match="scale 'huge'"):
         methods.make("audio-rms", seed=0, scale="huge")
+    with pytest.raises(ValueError, match=r"'tiny' is unknown; allowed: smoke, short, full .*dataset preset"):
+        methods.make("audio-rms", seed=0, scale="tiny")
     with pytest.raises(ValueError, match="already registered"):
         methods.register(
             "audio-rms",
@@ -140,7 +142,7 @@ def test_registry_errors(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match=r"method\.json"):
         methods.load_detector(tmp_path)
     windows, _ = toy_windows(10, 0, seed=7)
-    det = methods.make("audio-rms", seed=0, scale="tiny").fit(windows)
+    det = methods.make("audio-rms", seed=0, scale="smoke").fit(windows)
     folder = methods.save_detector(det, "audio-rms", tmp_path / "m")
     info = json.loads((folder / "method.json").read_text())
     assert info["method"] == "audio-rms" and "numpy" in info["versions"]
@@ -199,13 +201,13 @@ def test_registry_lists_every_family_of_the_paper() -> None:
     assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if", "dcase-ae"}
     assert len(by_family["shallow"]) == 6
     assert set(by_family["reference"]) == {"gaussian-early", "gaussian-audio", "gaussian-imu"}
-    assert methods.make("msvdd-s64", seed=0, scale="paper").config.batch_size == 128  # type: ignore[attr-defined]
+    assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
 
 
 def test_msvdd_trains_without_a_validation_set_too_small_for_its_mcd() -> None:
     torch.set_num_threads(1)
     windows, _ = toy_windows(48, 0, seed=10)
-    det = methods.make("msvdd", seed=0, scale="tiny")
+    det = methods.make("msvdd", seed=0, scale="smoke")
     with pytest.warns(UserWarning, match="too few for the validation MCD"):
         det.fit(windows.subset(slice(0, 40)), windows.subset(slice(40, 45)))
     assert np.isfinite(det.threshold_)

@@ -79,11 +79,11 @@ def test_device_and_no_progress_where_training_runs() -> None:
 def test_make_passes_progress_to_the_training_config() -> None:
     from benchmarks.methods import make
 
-    assert make("msvdd", seed=0, scale="tiny").config.progress is False  # type: ignore[attr-defined]
-    assert make("msvdd", seed=0, scale="tiny", progress=True).config.progress is True  # type: ignore[attr-defined]
-    assert make("dae", seed=0, scale="quick", progress=False).config.progress is False  # type: ignore[attr-defined]
-    assert make("dcase-ae", seed=0, scale="tiny", progress=True).config.progress is True  # type: ignore[attr-defined]
-    make("iforest-early", seed=0, scale="tiny", progress=True)  # no bar: ignored
+    assert make("msvdd", seed=0, scale="smoke").config.progress is False  # type: ignore[attr-defined]
+    assert make("msvdd", seed=0, scale="smoke", progress=True).config.progress is True  # type: ignore[attr-defined]
+    assert make("dae", seed=0, scale="short", progress=False).config.progress is False  # type: ignore[attr-defined]
+    assert make("dcase-ae", seed=0, scale="smoke", progress=True).config.progress is True  # type: ignore[attr-defined]
+    make("iforest-early", seed=0, scale="smoke", progress=True)  # no bar: ignored
 
 
 def test_methods_lists_every_method_without_building_one(

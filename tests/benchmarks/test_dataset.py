@@ -204,3 +204,12 @@ def test_a_dataset_of_the_previous_format_still_opens_and_loads(tiny_dataset: Pa
     np.testing.assert_array_equal(
         episode.trace().wheel_angle, read_episode(tiny_dataset / rows[0].episode).trace().wheel_angle
     )
+
+
+@pytest.mark.parametrize(("old", "new"), [("tiny", "smoke"), ("quick", "short"), ("paper", "full")])
+def test_a_manifest_with_the_former_budget_names_reads_as_the_budgets(
+    tiny_dataset: Path, old: str, new: str
+) -> None:
+    data = ds.open_dataset(tiny_dataset, verify=False)
+    manifest = {**data.manifest, "preset": {**data.manifest["preset"], "method_scale": old}}
+    assert ds.Dataset(data.path, manifest, data.windows).preset.method_scale == new

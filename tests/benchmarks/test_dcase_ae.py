@@ -20,7 +20,7 @@ torch.set_num_threads(1)
 def test_dcase_ae_separates_the_toy_anomalies() -> None:
     train, _ = toy_windows(80, 0, seed=21)
     test, labels = toy_windows(30, 30, seed=22)
-    det = methods.make("dcase-ae", seed=0, scale="tiny").fit(train)
+    det = methods.make("dcase-ae", seed=0, scale="smoke").fit(train)
     assert roc_auc(labels, det.score(test)) > 0.9
     assert methods.spec("dcase-ae").modality == "audio"
 
@@ -49,7 +49,7 @@ def _oracle_scores(path: Path, audio: np.ndarray) -> np.ndarray:
 def test_dcase_ae_score_is_the_mean_frame_reconstruction_error(tmp_path: Path) -> None:
     train, _ = toy_windows(40, 0, seed=23)
     test, _ = toy_windows(4, 4, seed=24)
-    det = methods.make("dcase-ae", seed=1, scale="tiny").fit(train)
+    det = methods.make("dcase-ae", seed=1, scale="smoke").fit(train)
     det.save(tmp_path / "model.npz")
     want = _oracle_scores(tmp_path / "model.npz", test.audio)
     np.testing.assert_allclose(det.score(test), want, rtol=1e-4)

@@ -34,7 +34,7 @@ from msvdd.contract import AUDIO_LEN, IMU_LEN
 HUM_HZ, FAULT_HZ = 120.0, 1200.0
 """Machine hum and the fault's added tone (below the 2 kHz anti-alias cut-off of the windows)."""
 IMU_COLUMNS = "t=time_ms,ax=acc_x,ay=acc_y,az=acc_z,gx=gyr_x,gy=gyr_y,gz=gyr_z"
-TINY = ImportConfig(scale="tiny")
+TINY = ImportConfig(scale="smoke")
 
 
 def _machine(rng: np.random.Generator, seconds: float, rate: int, abnormal: bool) -> np.ndarray:
@@ -68,7 +68,7 @@ def mimii_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def mimii(mimii_source: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    config = ImportConfig(scale="tiny", train_hop_s=0.5)  # 40 training windows: M-SVDD's batch is 32
+    config = ImportConfig(scale="smoke", train_hop_s=0.5)  # 40 training windows: M-SVDD's batch is 32
     return import_dataset(
         "mimii", mimii_source, tmp_path_factory.mktemp("ds") / "mimii", config, progress=False
     )
@@ -117,7 +117,7 @@ def folder_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def folder(folder_source: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    config = ImportConfig(scale="tiny", split=SplitConfig(test_fraction=0.5, val_fraction=0.0))
+    config = ImportConfig(scale="smoke", split=SplitConfig(test_fraction=0.5, val_fraction=0.0))
     layout = FolderConfig(
         imu_columns=parse_imu_columns(IMU_COLUMNS), time_unit="ms", labels=str(folder_source / "labels.csv")
     )
@@ -171,7 +171,7 @@ def test_mimii_dataset_is_audio_only_split_per_machine_and_has_no_trace(mimii: P
     assert manifest["source"] == "import" and manifest["modalities"] == ["audio"]
     assert manifest["import"]["layout"] == "mimii"
     assert manifest["import"]["units"] == {"0": "fan/id_00", "1": "fan/id_02"}
-    assert data.preset.name == "import-mimii" and data.preset.method_scale == "tiny"
+    assert data.preset.name == "import-mimii" and data.preset.method_scale == "smoke"
     recordings = {e["recording"]: e for e in manifest["episodes"]}
     assert len(recordings) == 17  # the hidden ._ file is not a clip
     split_of = {name.split("/", 2)[2]: e["split"] for name, e in recordings.items()}
@@ -216,7 +216,7 @@ def test_audio_only_methods_detect_mimii_anomalies_through_the_cli(mimii: Path, 
 @pytest.mark.filterwarnings("ignore:the val set has:UserWarning")  # 5 val windows: M-SVDD skips its MCD check
 def test_audio_only_msvdd_scores_mimii_anomalies_above_normals(mimii: Path, tmp_path: Path) -> None:
     data = open_dataset(mimii, verify=False)
-    model = train_method(data, "msvdd-audio-only", 0, "tiny", tmp_path / "m")
+    model = train_method(data, "msvdd-audio-only", 0, "smoke", tmp_path / "m")
     scores, per_method, _ = score_and_measure(data, [model], progress=False)
     s = scores[0].scores
     assert np.all(np.isfinite(s)) and np.ptp(s) > 0
@@ -237,7 +237,7 @@ def test_imu_methods_are_refused_on_an_audio_only_dataset(
     assert "gaussian-audio" in err  # what can run instead
     assert not (tmp_path / "m").exists()
     with pytest.raises(MissingModalityError, match="no imu modality"):
-        train_method(open_dataset(mimii, verify=False), "imu-kurtosis", 0, "tiny", tmp_path / "k")
+        train_method(open_dataset(mimii, verify=False), "imu-kurtosis", 0, "smoke", tmp_path / "k")
 
 
 def test_dcase_flat_layout(tmp_path: Path) -> None:
@@ -325,7 +325,7 @@ def test_folder_import_through_the_cli_with_a_split_file(folder_source: Path, tm
     labels = str(folder_source / "labels.csv")
     assert main(["import", str(folder_source), "--layout", "folder", "--out", str(out), "--labels", labels,
                  "--imu-columns", IMU_COLUMNS, "--time-unit", "ms", "--split-file", str(splits),
-                 "--imu-rate", "400", "--scale", "tiny", "--no-progress"]) == 0  # fmt: skip
+                 "--imu-rate", "400", "--scale", "smoke", "--no-progress"]) == 0  # fmt: skip
     split_of = {e["recording"]: e["split"] for e in open_dataset(out).manifest["episodes"]}
     assert split_of == {"rec_a": "train", "rec_b": "test", "day2/rec_c": "test", "rec_d": "val"}
 
@@ -354,7 +354,7 @@ def test_viz_shows_what_an_imported_episode_has(folder: Path, mimii: Path, tmp_p
 
     data = open_dataset(mimii, verify=False)
     episode = next(r.episode for r in data.windows if r.kind != "normal")
-    model = train_method(data, "gaussian-audio", 0, "tiny", tmp_path / "model").path
+    model = train_method(data, "gaussian-audio", 0, "smoke", tmp_path / "model").path
     rrd = log_episode(mimii, episode, model_dir=model, save=tmp_path / "mimii.rrd")
     assert rrd is not None
     seen = _entities(rrd)
@@ -365,7 +365,7 @@ def test_viz_shows_what_an_imported_episode_has(folder: Path, mimii: Path, tmp_p
     seen = _entities(log_episode(folder, collision, save=tmp_path / "folder.rrd"))  # type: ignore[arg-type]
     assert {"/signals/imu/vel_z", "/signals/imu/acc", "/events"} <= seen
     imu_model = train_method(
-        open_dataset(folder, verify=False), "gaussian-early", 0, "tiny", tmp_path / "e"
+        open_dataset(folder, verify=False), "gaussian-early", 0, "smoke", tmp_path / "e"
     ).path
     with pytest.raises(MissingModalityError, match="no imu modality"):
         log_episode(mimii, episode, model_dir=imu_model, save=tmp_path / "refused.rrd")
@@ -537,7 +537,7 @@ def test_existing_output_needs_replace_and_only_a_dataset_is_replaced(
     before = open_dataset(out).fingerprint
     with pytest.raises(OutputExistsError, match="pass --replace"):
         import_dataset("mimii", mimii_source, out, TINY, progress=False)
-    config = ImportConfig(scale="tiny", split=SplitConfig(test_fraction=0.5, val_fraction=0.0))
+    config = ImportConfig(scale="smoke", split=SplitConfig(test_fraction=0.5, val_fraction=0.0))
     import_dataset("mimii", mimii_source, out, config, replace=True, progress=False)
     assert open_dataset(out).fingerprint != before and not list(tmp_path.glob(".ds*"))
     other = tmp_path / "notes"

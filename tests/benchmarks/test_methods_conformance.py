@@ -1,4 +1,4 @@
-"""One conformance test run over every registered method, at tiny scale, on the toy windows: the detector
+"""One conformance test run over every registered method, at the smoke budget, on toy windows: the detector
 contract, and an obvious planted anomaly scored above the normal windows."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ torch.set_num_threads(1)
 
 PLANTED_AUC_MIN = 0.75
 """Every method must rank the planted anomalies above the normal windows they were planted in at least this
-often (the AUC); at tiny scale the weakest (deep-if, dsvdd, vae-svdd) reach about 0.9 at seed 0."""
+often (the AUC); at the smoke budget the weakest (deep-if, dsvdd, vae-svdd) reach about 0.9 at seed 0."""
 
 
 def plant_obvious_anomaly(windows: Windows, seed: int) -> Windows:
@@ -64,7 +64,7 @@ def toy() -> Toy:
 @pytest.mark.parametrize("name", methods.names())
 def test_method_conforms(name: str, toy: Toy, tmp_path: Path) -> None:
     train, test = toy.train, toy.test
-    detector = methods.make(name, seed=0, scale="tiny")
+    detector = methods.make(name, seed=0, scale="smoke")
     assert isinstance(detector, Detector)
     with pytest.raises(NotFittedError):
         detector.score(test)
@@ -97,13 +97,13 @@ def test_method_conforms(name: str, toy: Toy, tmp_path: Path) -> None:
     with pytest.raises(WindowError):
         detector.score(test.audio)  # type: ignore[arg-type]
     with pytest.raises(WindowError):
-        methods.make(name, seed=0, scale="tiny").fit(train.subset(slice(0, 1)))
+        methods.make(name, seed=0, scale="smoke").fit(train.subset(slice(0, 1)))
 
 
 @pytest.mark.parametrize("n_val", [0, MIN_HELD_OUT - 1])
 def test_threshold_from_training_windows_without_enough_held_out(n_val: int, toy: Toy) -> None:
     val = toy.val.subset(slice(0, n_val)) if n_val else None
-    detector = methods.make("audio-rms", seed=0, scale="tiny").fit(toy.train, val)
+    detector = methods.make("audio-rms", seed=0, scale="smoke").fit(toy.train, val)
     assert detector.threshold_source_ == "train"
     assert detector.threshold_ == np.quantile(detector.score(toy.train), 0.95)
 
@@ -112,6 +112,6 @@ def test_threshold_from_training_windows_without_enough_held_out(n_val: int, toy
 @pytest.mark.parametrize("name", [n for n in methods.names() if not n.startswith("msvdd-")])
 def test_method_is_deterministic_for_a_seed(name: str, toy: Toy) -> None:
     train, test = toy.train, toy.test
-    a = methods.make(name, seed=3, scale="tiny").fit(train).score(test)
-    b = methods.make(name, seed=3, scale="tiny").fit(train).score(test)
+    a = methods.make(name, seed=3, scale="smoke").fit(train).score(test)
+    b = methods.make(name, seed=3, scale="smoke").fit(train).score(test)
     np.testing.assert_array_equal(a, b)

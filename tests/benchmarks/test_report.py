@@ -75,7 +75,7 @@ def test_a_real_tiny_run_reports_intervals_and_differences(
     dataset = open_dataset(tiny_dataset)
     name, detector = methods.load_detector(tiny_model)
     models = [TrainedModel(name, 0, detector, tiny_model, 1.0)]
-    models += [train_method(dataset, "audio-rms", s, "tiny", tmp_path / f"rms{s}") for s in (0, 1)]
+    models += [train_method(dataset, "audio-rms", s, "smoke", tmp_path / f"rms{s}") for s in (0, 1)]
     scores, per_method, rows = score_and_measure(dataset, models, progress=False)
     write_report(tmp_path / "run", INFO, rows, scores, per_method)
 

@@ -146,7 +146,7 @@ def _doc(**changes: Any) -> dict[str, Any]:
         ({"base": "huge"}, "unknown preset 'huge'; allowed: tiny"),
         ({"labels": ["a"]}, "labels = ['a'] is invalid; allowed: a list of 2 strings"),
         ({"seeds": [-1]}, "seeds = [-1] is invalid; allowed: a non-empty list of integers >= 0"),
-        ({"scale": "huge"}, "scale = 'huge' is invalid; allowed: tiny, quick, paper"),
+        ({"scale": "huge"}, "scale = 'huge' is invalid; allowed: smoke, short, full"),
         (
             {"axis": "drive_speed", "values": [3.0]},
             "values[0] = 3.0 is invalid; allowed: a number from 0.5 to 2",

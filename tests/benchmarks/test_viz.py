@@ -111,7 +111,7 @@ def model(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
         np.array([0.0, 0.25, 0.5]),
         imu6=episode.imu6,
     )
-    detector = make("audio-rms", seed=0, scale="tiny").fit(windows)
+    detector = make("audio-rms", seed=0, scale="smoke").fit(windows)
     return save_detector(detector, "audio-rms", tmp_path_factory.mktemp("vizmodel") / "rms")
 
 
@@ -313,7 +313,7 @@ def test_generated_episode_scores_match_the_evaluation_windows(tiny_dataset: Pat
     data = open_dataset(tiny_dataset)
     train, _ = data.load_windows("train")
     model = save_detector(
-        make("iforest-early", seed=0, scale="tiny").fit(train), "iforest-early", tmp_path / "m"
+        make("iforest-early", seed=0, scale="smoke").fit(train), "iforest-early", tmp_path / "m"
     )
     rows = [r for r in data.rows("test") if r.kind == "mechanical"]
     assert rows, "the tiny preset has fault windows"

@@ -43,6 +43,9 @@ fault_duration_s = 10.0
 """
 
 
+pytestmark = pytest.mark.xdist_group("sweep")  # with `pytest -n`: one worker, the module fixtures once
+
+
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """(spec file, sweep folder) of the two-point sweep, run once through the CLI with two local workers."""

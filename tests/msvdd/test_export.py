@@ -28,6 +28,9 @@ from msvdd.synthetic import toy_windows
 RTOL = 1e-4
 
 
+pytestmark = pytest.mark.xdist_group("export")  # with `pytest -n`: one worker, the module fixtures once
+
+
 @pytest.fixture(scope="module")
 def exported(tiny_model: Path, tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The tiny M-SVDD model exported through the CLI, checked on the dataset's test windows."""

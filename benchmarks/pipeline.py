@@ -81,8 +81,8 @@ def train_method(
     return TrainedModel(name, seed, detector, path, elapsed)
 
 
-def test_windows(dataset: Dataset, progress: bool = False) -> tuple[Windows, list[WindowRow]]:
-    """The test windows; refuses a test split without anomalies or without nominal windows."""
+def test_rows(dataset: Dataset) -> list[WindowRow]:
+    """The test rows; refuses a test split without anomalies or without nominal windows."""
     rows = dataset.rows("test")
     kinds = {r.kind for r in rows}
     if "normal" not in kinds or kinds == {"normal"}:
@@ -90,6 +90,12 @@ def test_windows(dataset: Dataset, progress: bool = False) -> tuple[Windows, lis
             f"{dataset.path}: the test split needs nominal and anomalous windows; "
             f"it has kinds {sorted(kinds)}"
         )
+    return rows
+
+
+def test_windows(dataset: Dataset, progress: bool = False) -> tuple[Windows, list[WindowRow]]:
+    """The test windows (`test_rows`' checks first)."""
+    test_rows(dataset)
     return dataset.load_windows("test", progress=progress)
 
 

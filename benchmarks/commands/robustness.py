@@ -59,6 +59,7 @@ def _run(args: argparse.Namespace) -> int:
     from benchmarks.dataset import open_dataset
     from benchmarks.errors import OutputExistsError
     from benchmarks.executor import make_executor
+    from benchmarks.pipeline import test_rows
     from benchmarks.robustness.report import MARKDOWN_FILE, RunContext, write_outputs
     from benchmarks.robustness.run import (
         RobustnessConfig,
@@ -66,7 +67,6 @@ def _run(args: argparse.Namespace) -> int:
         model_folders,
         parse_perturbations,
         run_robustness,
-        test_rows,
     )
 
     progress = not args.no_progress

@@ -138,18 +138,6 @@ def load_models(folders: Sequence[Path], progress: bool = False) -> list[Trained
     return models
 
 
-def test_rows(dataset: Dataset) -> list[WindowRow]:
-    """The test rows; refuses a test split without anomalies or without nominal windows (as `evaluate`)."""
-    rows = dataset.rows("test")
-    kinds = {r.kind for r in rows}
-    if "normal" not in kinds or kinds == {"normal"}:
-        raise DatasetError(
-            f"{dataset.path}: the test split needs nominal and anomalous windows; "
-            f"it has kinds {sorted(kinds)}"
-        )
-    return rows
-
-
 # --- streams and windows --------------------------------------------------------------------------------
 
 

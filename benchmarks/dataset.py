@@ -26,7 +26,9 @@ from tqdm import tqdm
 import sim
 import synth_audio
 from benchmarks.episode import (
+    AUDIO_FILE,
     EPISODE_FILES,
+    IMPORTED,
     EpisodeMeta,
     read_episode,
     software_versions,
@@ -616,7 +618,8 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
     """Refuse a dev dataset that is not another draw of the evaluated one; describe it for reports.
 
     Every choice a method makes is made on the dev dataset; the evaluated (eval) dataset is only
-    reported. They must come from the same preset and from different seeds.
+    reported. They must come from the same preset and from different seeds; datasets imported from
+    recordings (which have no seed) must share no recording instead.
     """
     dev_preset, eval_preset = dev.manifest["preset"]["name"], evaluated.manifest["preset"]["name"]
     if dev_preset != eval_preset:
@@ -624,12 +627,25 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
             f"--dev {dev.path}: preset {dev_preset!r}, but the evaluated dataset is {eval_preset!r}; "
             "a dev dataset must be another draw of the same preset"
         )
+    if IMPORTED in (dev.manifest.get("source"), evaluated.manifest.get("source")):
+        shared = _audio_checksums(dev) & _audio_checksums(evaluated)
+        if shared:
+            raise DatasetError(
+                f"--dev {dev.path}: {len(shared)} of its recordings are also in the evaluated dataset; "
+                "dev and eval must be imported from different recordings"
+            )
+        return f"`{dev.path}` (preset {dev_preset}, recordings disjoint from the evaluated dataset's)"
     if dev.manifest["seed"] == evaluated.manifest["seed"]:
         raise DatasetError(
             f"--dev {dev.path}: seed {dev.manifest['seed']} is the evaluated dataset's seed; "
             "dev and eval must be generated from different seeds"
         )
     return f"`{dev.path}` (preset {dev_preset}, seed {dev.manifest['seed']})"
+
+
+def _audio_checksums(data: Dataset) -> set[str]:
+    """The sha256 of every episode's audio: what identifies a recording whatever it was named."""
+    return {str(e["files"][AUDIO_FILE]) for e in data.manifest["episodes"]}
 
 
 def dataset_fingerprint(manifest: dict[str, Any]) -> str:

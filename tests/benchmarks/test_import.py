@@ -14,7 +14,7 @@ import soundfile as sf
 from rerun.chunk import RrdReader
 
 from benchmarks.cli import main
-from benchmarks.dataset import open_dataset
+from benchmarks.dataset import Dataset, open_dataset
 from benchmarks.episode import EpisodeError, read_episode
 from benchmarks.errors import OutputExistsError
 from benchmarks.importers import (
@@ -270,6 +270,24 @@ def test_dcase_flat_layout(tmp_path: Path) -> None:
     )
     with pytest.raises(SourceError, match=r"section_00_0007\.wav: file name has no normal/anomaly token"):
         import_dataset("mimii", tmp_path / "dev", tmp_path / "ds2", TINY, progress=False)
+
+
+def test_two_imports_of_different_recordings_are_a_dev_eval_pair(mimii: Path, tmp_path: Path) -> None:
+    """Imports have no seed: a dev import must share no recording with the evaluated one (by checksum)."""
+    from benchmarks.dataset import DatasetError, check_dev
+
+    evaluated = open_dataset(mimii, verify=False)
+    assert "recordings disjoint" in check_dev(_reimported_with_other_audio(mimii, tmp_path), evaluated)
+    with pytest.raises(DatasetError, match=r"of its recordings are also in the evaluated dataset"):
+        check_dev(open_dataset(mimii, verify=False), evaluated)
+
+
+def _reimported_with_other_audio(mimii: Path, tmp_path: Path) -> Dataset:
+    """The MIMII fixture's dataset with every audio checksum changed (as if recorded again)."""
+    data = open_dataset(mimii, verify=False)
+    episodes = [{**e, "files": {**e["files"], "audio.flac": f"{i:064d}"}}
+                for i, e in enumerate(data.manifest["episodes"])]  # fmt: skip
+    return Dataset(data.path, {**data.manifest, "episodes": episodes}, data.windows)
 
 
 # ---------------------------------------------------------------------------------------------- folder

@@ -26,9 +26,11 @@ from tqdm import tqdm
 import sim
 import synth_audio
 from benchmarks.episode import (
+    ALL_MODALITIES,
     AUDIO_FILE,
     EPISODE_FILES,
     IMPORTED,
+    SIMULATED,
     EpisodeMeta,
     read_episode,
     software_versions,
@@ -542,6 +544,35 @@ class Dataset:
         """`dataset_fingerprint` of the manifest: what identifies this dataset in run reports."""
         return dataset_fingerprint(self.manifest)
 
+    @property
+    def seed(self) -> int:
+        """The dataset seed (0 for an import, which has none)."""
+        return int(self.manifest["seed"])
+
+    @property
+    def preset_name(self) -> str:
+        """Name of the preset it was generated with (`import-<layout>` for an import)."""
+        return str(self.manifest["preset"]["name"])
+
+    @property
+    def source(self) -> str:
+        """`simulate` (generated) or `import` (recordings)."""
+        return str(self.manifest.get("source", SIMULATED))
+
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        """The sensors the dataset carries (a generated one: audio and IMU)."""
+        return tuple(self.manifest.get("modalities", ALL_MODALITIES))
+
+    @property
+    def episode_ids(self) -> list[str]:
+        """Every episode id, in manifest order (an episode's index here seeds its robustness draws)."""
+        return [str(e["episode_id"]) for e in self.manifest["episodes"]]
+
+    def categories(self) -> dict[str, str]:
+        """Episode id -> category (`nominal`, `collision`, `fault`)."""
+        return {str(e["episode_id"]): str(e["category"]) for e in self.manifest["episodes"]}
+
     def rows(self, split: str) -> list[WindowRow]:
         """Window rows of one split."""
         return [r for r in self.windows if r.split == split]
@@ -621,13 +652,13 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
     reported. They must come from the same preset and from different seeds; datasets imported from
     recordings (which have no seed) must share no recording instead.
     """
-    dev_preset, eval_preset = dev.manifest["preset"]["name"], evaluated.manifest["preset"]["name"]
+    dev_preset, eval_preset = dev.preset_name, evaluated.preset_name
     if dev_preset != eval_preset:
         raise DatasetError(
             f"--dev {dev.path}: preset {dev_preset!r}, but the evaluated dataset is {eval_preset!r}; "
             "a dev dataset must be another draw of the same preset"
         )
-    if IMPORTED in (dev.manifest.get("source"), evaluated.manifest.get("source")):
+    if IMPORTED in (dev.source, evaluated.source):
         shared = _audio_checksums(dev) & _audio_checksums(evaluated)
         if shared:
             raise DatasetError(
@@ -635,12 +666,12 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
                 "dev and eval must be imported from different recordings"
             )
         return f"`{dev.path}` (preset {dev_preset}, recordings disjoint from the evaluated dataset's)"
-    if dev.manifest["seed"] == evaluated.manifest["seed"]:
+    if dev.seed == evaluated.seed:
         raise DatasetError(
-            f"--dev {dev.path}: seed {dev.manifest['seed']} is the evaluated dataset's seed; "
+            f"--dev {dev.path}: seed {dev.seed} is the evaluated dataset's seed; "
             "dev and eval must be generated from different seeds"
         )
-    return f"`{dev.path}` (preset {dev_preset}, seed {dev.manifest['seed']})"
+    return f"`{dev.path}` (preset {dev_preset}, seed {dev.seed})"
 
 
 def _audio_checksums(data: Dataset) -> set[str]:

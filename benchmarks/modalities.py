@@ -8,9 +8,7 @@ reads the IMU (`audio+imu`, `imu`) is refused on it with `MissingModalityError` 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from benchmarks.episode import ALL_MODALITIES
 from benchmarks.errors import UserError
@@ -27,13 +25,9 @@ class MissingModalityError(UserError):
     """A method reads a sensor the dataset does not carry; the message names both."""
 
 
-def dataset_modalities(manifest: Mapping[str, Any]) -> tuple[str, ...]:
-    """The sensors a dataset's manifest says it carries (a generated dataset: audio and IMU)."""
-    return tuple(manifest.get("modalities", ALL_MODALITIES))
-
-
-def require_modalities(dataset: Path, manifest: Mapping[str, Any], method: str) -> None:
-    """Refuse method `method` on a dataset that lacks a sensor it reads (one line naming both).
+def require_modalities(dataset: Path, have: tuple[str, ...], method: str) -> None:
+    """Refuse method `method` on a dataset (or episode) carrying only the sensors `have` when it reads
+    another (one line naming both; `Dataset.modalities`, `Episode.modalities`).
 
     Raises:
         MissingModalityError: the dataset lacks a sensor the method's registry modality reads.
@@ -42,7 +36,6 @@ def require_modalities(dataset: Path, manifest: Mapping[str, Any], method: str) 
     from benchmarks import methods
 
     modality = methods.spec(method).modality
-    have = dataset_modalities(manifest)
     missing = [m for m in METHOD_READS.get(modality, ALL_MODALITIES) if m not in have]
     if missing:
         readers = [n for n in methods.names() if set(METHOD_READS[methods.spec(n).modality]) <= set(have)]

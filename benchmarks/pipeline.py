@@ -68,7 +68,7 @@ def train_method(
     training (None: no loading bar, the method's own training default). A method that reads a sensor the
     dataset lacks (an audio-only import) is refused (`benchmarks.modalities.MissingModalityError`).
     """
-    require_modalities(dataset.path, dataset.manifest, name)
+    require_modalities(dataset.path, dataset.modalities, name)
     if train is None:
         train, _ = dataset.load_windows("train", progress=bool(progress))
     if val is None and dataset.rows("val"):
@@ -106,7 +106,7 @@ def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, n
     faults of fault episodes; imported episodes list the onsets of their labelled spans (`anomalies`).
     Used for detection delays.
     """
-    category = {e["episode_id"]: e["category"] for e in dataset.manifest["episodes"]}
+    category = dataset.categories()
     episodes: list[str] = []
     onsets: list[float] = []
     for episode_id in sorted({r.episode for r in rows if r.kind != "normal"}):
@@ -130,7 +130,7 @@ def score_and_measure(
     A model whose method reads a sensor the dataset lacks is refused before any scoring.
     """
     for model in models:
-        require_modalities(dataset.path, dataset.manifest, model.method)
+        require_modalities(dataset.path, dataset.modalities, model.method)
     windows, rows = test if test is not None else test_windows(dataset)
     kinds = np.array([r.kind for r in rows])
     sub_kinds = np.array([r.sub_kind for r in rows])

@@ -135,8 +135,8 @@ def run_benchmark(
 
 def _dataset_identity(data: Path, preset_name: str | None, seed: int | None) -> tuple[str, int]:
     """The preset and seed `data` was generated with; a `--preset` or `--seed` that disagrees is an error."""
-    manifest = open_dataset(data, verify=False).manifest
-    ds_preset, ds_seed = str(manifest["preset"]["name"]), int(manifest["seed"])
+    dataset = open_dataset(data, verify=False)
+    ds_preset, ds_seed = dataset.preset_name, dataset.seed
     if preset_name is not None and preset_name != ds_preset:
         raise UserError(f"--preset {preset_name}: dataset {data} was generated with preset {ds_preset}")
     if seed is not None and seed != ds_seed:

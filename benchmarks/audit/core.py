@@ -58,7 +58,6 @@ from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_c
 from benchmarks.episode import IMPORTED, read_episode, read_trace, read_trace_signals
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
-from benchmarks.modalities import dataset_modalities
 from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
 from msvdd import preprocess
 from msvdd.contract import IMU_RATE, WINDOW_S, Windows
@@ -262,8 +261,8 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     """Every probe on a dataset's test windows (the dataset is verified first)."""
     started = time.perf_counter()
     data = open_dataset(Path(dataset))
-    simulated = data.manifest.get("source") != IMPORTED
-    has_imu = "imu" in dataset_modalities(data.manifest)
+    simulated = data.source != IMPORTED
+    has_imu = "imu" in data.modalities
     got = _collect(data, progress, simulated, has_imu)
     kinds = np.array([r.kind for r in got.rows])
     subs = np.array([r.sub_kind for r in got.rows])
@@ -440,9 +439,9 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
 
     if simulated:
         rows += _simulator_probes(data, got, s_audio, audio_only, progress)
-    preset = str(data.manifest["preset"]["name"])
+    preset = data.preset_name
     return AuditResult(
-        str(data.path), preset, int(data.manifest["seed"]), tuple(rows), time.perf_counter() - started
+        str(data.path), preset, data.seed, tuple(rows), time.perf_counter() - started
     )
 
 

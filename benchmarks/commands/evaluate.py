@@ -50,7 +50,7 @@ def _run(args: argparse.Namespace) -> int:
     scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
     info = RunInfo(
         preset=str(dataset.preset.name),
-        dataset_seed=int(dataset.manifest["seed"]),
+        dataset_seed=dataset.seed,
         dataset=str(args.data),
         command="msvdd-bench " + " ".join(sys.argv[1:]),
         machine=machine_description(),

@@ -42,8 +42,7 @@ def _run(args: argparse.Namespace) -> int:
     counts: dict[tuple[str, str], int] = {}
     for row in dataset.windows:
         counts[(row.split, row.kind)] = counts.get((row.split, row.kind), 0) + 1
-    episodes = dataset.manifest["episodes"]
-    print(f"wrote {path}: {len(episodes)} episodes, {len(dataset.windows)} windows")
+    print(f"wrote {path}: {len(dataset.episode_ids)} episodes, {len(dataset.windows)} windows")
     for (split, kind), n in sorted(counts.items()):
         print(f"  {split:<5} {kind:<10} {n:>6}")
     if args.cache is not None:

@@ -139,9 +139,9 @@ def _run(args: argparse.Namespace) -> int:
     counts: dict[tuple[str, str], int] = {}
     for row in dataset.windows:
         counts[(row.split, row.kind)] = counts.get((row.split, row.kind), 0) + 1
-    modalities = ", ".join(dataset.manifest["modalities"])
+    modalities = ", ".join(dataset.modalities)
     print(
-        f"wrote {path}: {len(dataset.manifest['episodes'])} episodes, {len(dataset.windows)} windows; "
+        f"wrote {path}: {len(dataset.episode_ids)} episodes, {len(dataset.windows)} windows; "
         f"modalities: {modalities}"
     )
     for (split, kind), n in sorted(counts.items()):

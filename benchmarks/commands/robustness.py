@@ -87,7 +87,7 @@ def _run(args: argparse.Namespace) -> int:
     context = RunContext(
         dataset=str(args.data),
         preset=str(dataset.preset.name),
-        dataset_seed=int(dataset.manifest["seed"]),
+        dataset_seed=dataset.seed,
         fingerprint=dataset.fingerprint,
         command="msvdd-bench " + " ".join(sys.argv[1:]),
         date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),

@@ -380,7 +380,7 @@ def run_robustness(
     episodes = np.array([r.episode for r in rows]).astype(str)
     positive = kinds != "normal"
     weights = episode_draws(episodes, positive, config.replicates, config.bootstrap_seed)
-    manifest_index = {e["episode_id"]: i for i, e in enumerate(dataset.manifest["episodes"])}
+    manifest_index = {e: i for i, e in enumerate(dataset.episode_ids)}
     missing = sorted({r.episode for r in rows} - set(manifest_index))
     if missing:
         raise DatasetError(f"{dataset.path}: test episode {missing[0]} is not in manifest.json")

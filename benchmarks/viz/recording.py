@@ -71,7 +71,7 @@ def require_episode_modalities(episode: Episode, method: str) -> None:
     import), as `train` and `evaluate` refuse it on the dataset."""
     from benchmarks.modalities import require_modalities
 
-    require_modalities(episode.path, {"modalities": list(episode.modalities)}, method)
+    require_modalities(episode.path, episode.modalities, method)
 
 
 def log_recording(

@@ -22,7 +22,7 @@ import numpy as np
 from dm_env import specs
 
 from sim.engine import CONTROL_STEPS, Engine
-from sim.events import MERGE_GAP, labels, runs
+from sim.events import MERGE_GAP, extend_runs, labels
 from sim.faults import fault_record
 from sim.imu import ImuNoise, decimate, decimation_factor, imu_noise
 from sim.random_scenarios import random_scenario
@@ -83,7 +83,8 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self._faults = tuple(
             fault_record(f, self.world.robot.info, self.scenario.duration) for f in self.scenario.faults
         )
-        self._touched: list[np.ndarray] = []
+        self._contact_runs: list[list[tuple[int, int]]] = [[] for _ in self.world.obstacles]
+        self._steps = 0
         self._left = np.array([1.0 if "left" in n else 0.0 for n in self.world.robot.info.wheel_names])
 
     def _observe(self, physics: np.ndarray) -> np.ndarray:
@@ -111,12 +112,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
     def _info(self, contacts: list[dict[str, Any]]) -> dict[str, Any]:
         t = self.engine.time
         dt = self.engine.dt
-        gap = max(1, round(MERGE_GAP / dt))
-        event_runs: list[tuple[int, int, int]] = []
-        if self._touched:
-            history = np.concatenate(self._touched)
-            for k in range(history.shape[1]):
-                event_runs += [(a, b, k) for a, b in runs(history[:, k], gap)]
+        event_runs = [(a, b, k) for k, found in enumerate(self._contact_runs) for a, b in found]
         label, sub, wheel = labels(np.array([t]), event_runs, self.world.obstacles, self._faults, dt)
         return {
             "time": t,
@@ -135,7 +131,8 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self.engine.reset()
         noise_seed = self.scenario.seed if seed is None else int(seed)
         self._noise = imu_noise(self._n_samples, self.scenario.sensors, noise_seed)
-        self._touched = []
+        self._contact_runs = [[] for _ in self.world.obstacles]
+        self._steps = 0
         return self._observe(self.engine.sensordata[None, :]), self._info([])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -147,7 +144,10 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self.engine.step(cmd, self._buffer)
         k = len(self.world.obstacles)
         hits = self._buffer[:, sl.obstacle_contact : sl.obstacle_contact + 7 * k].reshape(-1, k, 7)
-        self._touched.append(hits[:, :, 0] > 0)
+        gap = max(1, round(MERGE_GAP / self.engine.dt))
+        for k, found in enumerate(self._contact_runs):  # the contact runs so far, extended by this step's
+            extend_runs(found, self._steps + np.flatnonzero(hits[:, k, 0] > 0), gap)
+        self._steps += hits.shape[0]
         touched = np.flatnonzero((hits[:, :, 0] > 0).any(axis=0))
         contacts = [
             {

@@ -22,13 +22,25 @@ LABEL_MARGIN_AFTER = 0.25
 
 def runs(mask: np.ndarray, gap: int) -> list[tuple[int, int]]:
     """[start, stop) index runs where `mask` is true, merging runs separated by < `gap` samples."""
-    idx = np.flatnonzero(mask)
+    found: list[tuple[int, int]] = []
+    extend_runs(found, np.flatnonzero(mask), gap)
+    return found
+
+
+def extend_runs(found: list[tuple[int, int]], idx: np.ndarray, gap: int) -> None:
+    """Add the true indices `idx` (ascending, after every index already in `found`) to the runs `found`,
+    merging as `runs` does: the same result as `runs` over the whole mask, one chunk at a time (the
+    Gymnasium environment labels each step this way)."""
     if len(idx) == 0:
-        return []
+        return
     breaks = np.flatnonzero(np.diff(idx) > gap)
-    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
-    stops = np.concatenate([idx[breaks], [idx[-1]]]) + 1
-    return list(zip(starts.tolist(), stops.tolist(), strict=True))
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]]).tolist()
+    stops = (np.concatenate([idx[breaks], [idx[-1]]]) + 1).tolist()
+    new = list(zip(starts, stops, strict=True))
+    if found and new[0][0] - (found[-1][1] - 1) <= gap:
+        found[-1] = (found[-1][0], new[0][1])
+        new = new[1:]
+    found.extend(new)
 
 
 def contact_events(

@@ -152,3 +152,14 @@ def test_every_scenario_preset_runs_for_every_robot_model(preset: str, model: st
             assert np.all(np.isfinite(value)), (preset, model, key)
         assert env.last_info["label"] in (sim.vocab.NORMAL, sim.vocab.COLLISION, sim.vocab.MECHANICAL)
         ts = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 16])
+def test_contact_runs_built_chunk_by_chunk_equal_the_whole_episodes(chunk: int) -> None:
+    from sim.events import extend_runs, runs
+
+    mask = np.random.default_rng(chunk).random(500) < 0.15
+    found: list[tuple[int, int]] = []
+    for start in range(0, mask.size, chunk):
+        extend_runs(found, start + np.flatnonzero(mask[start : start + chunk]), 4)
+    assert found == runs(mask, 4) and len(found) > 5

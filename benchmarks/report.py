@@ -28,6 +28,8 @@ from benchmarks.uncertainty import (
     Interval,
     bootstrap_mean_auc,
     episode_draws,
+    excludes_zero,
+    format_interval,
 )
 from msvdd.contract import MIN_HELD_OUT, THRESHOLD_QUANTILE
 
@@ -207,24 +209,6 @@ def _fmt(mean: float, std: float, pct: bool = True, with_std: bool = True) -> st
     return text
 
 
-def _fmt_interval(iv: Interval, signed: bool = False) -> str:
-    """`84.0 [81.2, 86.5]` in percent (`+1.2 [-0.5, +3.0]` signed); `[n/a]` for an undefined interval."""
-    if not math.isfinite(iv.value):
-        return "n/a"
-    pattern = "{:+.1f}" if signed else "{:.1f}"
-    text = pattern.format(100.0 * iv.value)
-    if math.isfinite(iv.low) and math.isfinite(iv.high):
-        return text + f" [{pattern.format(100.0 * iv.low)}, {pattern.format(100.0 * iv.high)}]"
-    return text + " [n/a]"
-
-
-def _excludes_zero(iv: Interval) -> bool | None:
-    """Whether the interval lies wholly above or below zero (None when it is undefined)."""
-    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
-        return None
-    return iv.excludes(0.0)
-
-
 def _diff_cells(intervals: RunIntervals, method: str, key: str) -> list[str]:
     """The paired-difference cell and its excludes-zero cell of one method and AUC key."""
     if method == intervals.reference:
@@ -233,15 +217,15 @@ def _diff_cells(intervals: RunIntervals, method: str, key: str) -> list[str]:
     iv = found.vs_reference.get(key) if found is not None else None
     if iv is None:
         return ["n/a", "n/a"]
-    excludes = _excludes_zero(iv)
-    return [_fmt_interval(iv, signed=True), "n/a" if excludes is None else ("yes" if excludes else "no")]
+    excludes = excludes_zero(iv)
+    return [format_interval(iv, signed=True), "n/a" if excludes is None else ("yes" if excludes else "no")]
 
 
 def _auc_cell(intervals: RunIntervals | None, method: str, key: str) -> str | None:
     """An AUC cell with its interval, or None when the run has no interval for it."""
     found = intervals.methods.get(method) if intervals is not None else None
     iv = found.auc.get(key) if found is not None else None
-    return None if iv is None else _fmt_interval(iv)
+    return None if iv is None else format_interval(iv)
 
 
 def _resolve(name: str, available: Mapping[str, object]) -> list[str]:
@@ -530,7 +514,7 @@ def results_json(
         if found is not None:
             entry["auc_ci95"] = {k: iv.to_dict() for k, iv in found.auc.items()}
             entry["auc_diff_vs_reference"] = {
-                k: {**iv.to_dict(), "excludes_zero": _excludes_zero(iv)}
+                k: {**iv.to_dict(), "excludes_zero": excludes_zero(iv)}
                 for k, iv in found.vs_reference.items()
             }
         doc["methods"][name] = entry

@@ -118,6 +118,27 @@ def episode_draws(
     return counts[:, index]
 
 
+def excludes_zero(iv: Interval) -> bool | None:
+    """Whether the interval lies wholly above or below zero (None when it is undefined)."""
+    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
+        return None
+    return iv.excludes(0.0)
+
+
+def format_interval(iv: Interval, *, percent: bool = True, signed: bool = False, digits: int = 1) -> str:
+    """`84.0 [81.2, 86.5]` (an AUC in percent), `+1.2 [-0.5, +3.0]` with `signed`, `1.030 [0.990, 1.070]`
+    with `percent=False, digits=3` (a ratio); `[n/a]` for an undefined interval, `n/a` for an undefined
+    value."""
+    if not math.isfinite(iv.value):
+        return "n/a"
+    scale = 100.0 if percent else 1.0
+    pattern = f"{{:{'+' if signed else ''}.{digits}f}}"
+    text = pattern.format(scale * iv.value)
+    if math.isfinite(iv.low) and math.isfinite(iv.high):
+        return text + f" [{pattern.format(scale * iv.low)}, {pattern.format(scale * iv.high)}]"
+    return text + " [n/a]"
+
+
 def _interval(value: float, replicates: np.ndarray) -> Interval:
     r = replicates[np.isfinite(replicates)]
     if not math.isfinite(value) or r.size == 0:

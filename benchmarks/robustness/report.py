@@ -14,7 +14,7 @@ from typing import Any
 from benchmarks.errors import OutputExistsError
 from benchmarks.robustness.perturb import KINDS
 from benchmarks.robustness.run import ConditionResult, RobustnessResult
-from benchmarks.uncertainty import CONFIDENCE, Interval
+from benchmarks.uncertainty import CONFIDENCE, excludes_zero, format_interval
 
 MARKDOWN_FILE = "robustness.md"
 """The tables."""
@@ -55,18 +55,12 @@ def _result_dict(r: ConditionResult) -> dict[str, Any]:
         "unit": unit,
         "auc": r.auc.to_dict(),
         "ratio_to_clean": r.ratio.to_dict(),
-        "delta_vs_clean": {**r.delta.to_dict(), "excludes_zero": _excludes_zero(r.delta)},
+        "delta_vs_clean": {**r.delta.to_dict(), "excludes_zero": excludes_zero(r.delta)},
         "auc_collision": _num(r.auc_collision),
         "auc_mechanical": _num(r.auc_mechanical),
         "nonfinite_scores": r.nonfinite_scores,
         "mirrored_windows": r.mirrored_windows,
     }
-
-
-def _excludes_zero(iv: Interval) -> bool | None:
-    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
-        return None
-    return iv.excludes(0.0)
 
 
 def to_json(result: RobustnessResult, context: RunContext) -> dict[str, Any]:
@@ -108,22 +102,6 @@ def to_json(result: RobustnessResult, context: RunContext) -> dict[str, Any]:
     }
 
 
-def _pct(iv: Interval) -> str:
-    if not math.isfinite(iv.value):
-        return "n/a"
-    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
-        return f"{100 * iv.value:.1f} [n/a]"
-    return f"{100 * iv.value:.1f} [{100 * iv.low:.1f}, {100 * iv.high:.1f}]"
-
-
-def _ratio(iv: Interval) -> str:
-    if not math.isfinite(iv.value):
-        return "n/a"
-    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
-        return f"{iv.value:.3f} [n/a]"
-    return f"{iv.value:.3f} [{iv.low:.3f}, {iv.high:.3f}]"
-
-
 def _conditions(result: RobustnessResult) -> list[tuple[str, float]]:
     return list(dict.fromkeys((r.kind, r.severity) for r in result.results if r.kind != "clean"))
 
@@ -152,7 +130,7 @@ def markdown(result: RobustnessResult, context: RunContext) -> str:
         "",
         "| Method | AUC (%) |",
         "|---|---|",
-        *(f"| {m} | {_pct(result.clean(m).auc)} |" for m in names),
+        *(f"| {m} | {format_interval(result.clean(m).auc)} |" for m in names),
         "",
         "## AUC ratio, perturbed / clean (1 = unaffected)",
         "",
@@ -161,7 +139,7 @@ def markdown(result: RobustnessResult, context: RunContext) -> str:
     ]
     conditions = _conditions(result)
     for kind, severity in conditions:
-        cells = [_ratio(by[(m, kind, severity)].ratio) for m in names]
+        cells = [format_interval(by[(m, kind, severity)].ratio, percent=False, digits=3) for m in names]
         lines.append(f"| {kind} | {severity:g} {KINDS[kind].unit} | " + " | ".join(cells) + " |")
     lines += [
         "",
@@ -171,7 +149,7 @@ def markdown(result: RobustnessResult, context: RunContext) -> str:
         "|---|---|" + "---|" * len(names),
     ]
     for kind, severity in conditions:
-        cells = [_pct(by[(m, kind, severity)].auc) for m in names]
+        cells = [format_interval(by[(m, kind, severity)].auc) for m in names]
         lines.append(f"| {kind} | {severity:g} {KINDS[kind].unit} | " + " | ".join(cells) + " |")
     nonfinite = [r for r in result.results if r.nonfinite_scores]
     first = names[0]

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.sweeps.run import AUC_KEYS, PointResult, SweepResult
-from benchmarks.uncertainty import CONFIDENCE, Interval
+from benchmarks.uncertainty import CONFIDENCE, Interval, format_interval
 
 AUC_TITLES: dict[str, str] = {
     "auc": "AUC, every anomaly against normal",
@@ -84,14 +84,6 @@ def combined(runs: list[PointResult], method: str, key: str) -> Interval:
     return Interval(value, min(lows) if lows else math.nan, max(highs) if highs else math.nan)
 
 
-def _cell(iv: Interval) -> str:
-    if not math.isfinite(iv.value):
-        return "n/a"
-    if not (math.isfinite(iv.low) and math.isfinite(iv.high)):
-        return f"{100 * iv.value:.1f} [n/a]"
-    return f"{100 * iv.value:.1f} [{100 * iv.low:.1f}, {100 * iv.high:.1f}]"
-
-
 def markdown(result: SweepResult) -> str:
     """`sweep.md`: the setting, then one table per AUC (rows: point and dataset seed; columns: methods)."""
     spec, axis = result.spec, result.spec.axis
@@ -120,7 +112,7 @@ def markdown(result: SweepResult) -> str:
             "| " + " | ".join(["---"] * (2 + len(names))) + " |",
         ]
         for r in result.results:
-            cells = [_cell(r.methods[m].auc[key]) if m in r.methods else "" for m in names]
+            cells = [format_interval(r.methods[m].auc[key]) if m in r.methods else "" for m in names]
             lines.append("| " + " | ".join([label[r.point], str(r.seed), *cells]) + " |")
     lines += [
         "",

@@ -3,7 +3,8 @@
 A cached dataset lives in `DIR/<preset>-seed<seed>-<key>/`, where `key` is the start of a sha256 over what
 decides the dataset's bytes: the dataset format version, the preset's recipe, the seed, the versions of the
 packages that shape the data (`benchmarks.episode.software_versions`) and the source of the code that
-generates it (`sim`, `synth_audio`, the `assets` robot models, `benchmarks.dataset`, `episode` and `presets`).
+generates it (`sim`, `synth_audio`, the `assets` robot models, `benchmarks.dataset`, `manifest`, `episode`,
+`json_records` and `presets`).
 Change any of them and the key changes, so a stale dataset is never reused; older entries stay in `DIR`
 until removed by hand.
 
@@ -33,7 +34,13 @@ KEY_LENGTH = 16
 
 _GENERATOR_PACKAGES: tuple[str, ...] = ("sim", "synth_audio", "assets")
 """Packages whose every file is part of the generating code."""
-_GENERATOR_MODULES: tuple[str, ...] = ("benchmarks.dataset", "benchmarks.episode", "benchmarks.presets")
+_GENERATOR_MODULES: tuple[str, ...] = (
+    "benchmarks.dataset",
+    "benchmarks.manifest",
+    "benchmarks.episode",
+    "benchmarks.json_records",
+    "benchmarks.presets",
+)
 """Single modules that are part of it."""
 
 

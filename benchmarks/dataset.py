@@ -2,23 +2,21 @@
 
 A dataset folder holds one folder per episode (see `benchmarks.episode`), `windows.csv` (one row per
 2 s window: episode, start, split, label, kind, sub-kind, wheel) and `manifest.json` (format version,
-preset, seed, episodes with their split and the sha256 of every file). It is written to a temporary
-folder beside the target and renamed into place, so a dataset folder is either complete or absent.
+preset, seed, episodes with their split and the sha256 of every file; typed, read and written by
+`benchmarks.manifest`). It is written to a temporary folder beside the target and renamed into place, so a
+dataset folder is either complete or absent.
 """
 
 from __future__ import annotations
 
 import csv
-import dataclasses
 import functools
 import hashlib
-import json
 import os
 import shutil
 import tempfile
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -26,34 +24,34 @@ from tqdm import tqdm
 import sim
 import synth_audio
 from benchmarks.episode import (
-    ALL_MODALITIES,
     AUDIO_FILE,
     EPISODE_FILES,
     IMPORTED,
+    IMPORTED_EPISODE_FILES,
     SIMULATED,
     EpisodeMeta,
     read_episode,
     software_versions,
     write_episode,
 )
-from benchmarks.errors import InputNotFoundError, OutputExistsError, UserError, check_seed
+from benchmarks.errors import OutputExistsError, UserError, check_seed
 from benchmarks.executor import Executor, LocalExecutor, publish_dir
+from benchmarks.manifest import (
+    DATASET_FORMAT_VERSION,
+    MANIFEST_FILE,
+    DatasetError,
+    DroppedWindow,
+    EpisodeSpec,
+    Manifest,
+    ManifestEpisode,
+    ManifestWindows,
+)
 from benchmarks.presets import Preset, get_preset
 from msvdd import preprocess
 from msvdd.contract import IMU_LEN, IMU_RATE, WINDOW_S, Windows
 from sim import vocab
-from sim.random_scenarios import OBSTACLE_ENVIRONMENTS, SETTLE_S, ScenarioOptions, scale_speeds
+from sim.random_scenarios import OBSTACLE_ENVIRONMENTS, SETTLE_S, scale_speeds
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
-
-DATASET_FORMAT_VERSION = 3
-"""Version of the dataset layout (manifest, window table, episode folders).
-
-2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
-training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal_test_duration_s`).
-3: episodes of format 2 (`benchmarks.episode`: 16-bit dithered audio, float32 trace signals); same manifest.
-"""
-READABLE_DATASET_FORMATS: tuple[int, ...] = (2, 3)
-"""Dataset format versions `open_dataset` reads (episode folders of either episode format)."""
 
 WINDOW_COLUMNS: tuple[str, ...] = (
     "window_id",
@@ -70,62 +68,6 @@ WINDOW_COLUMNS: tuple[str, ...] = (
 
 MECHANICAL_MIN_FRACTION = 0.5
 """A window is a mechanical-fault window when at least this fraction of it has the fault active."""
-
-
-class DatasetError(UserError):
-    """A dataset folder is incomplete, corrupt or of another format; the message names the file."""
-
-
-@dataclass(frozen=True)
-class EpisodeSpec:
-    """One planned episode: enough to simulate and render it in any process."""
-
-    episode_id: str
-    """Folder name."""
-    category: str
-    """`nominal`, `collision` or `fault`."""
-    split: str
-    """`train`, `val` or `test`."""
-    seed: int
-    """Seed of scenario and audio."""
-    unit_id: int
-    """Robot unit."""
-    snr_db: float
-    """Mix SNR, dB (drawn uniformly from the preset's `snr_db` range)."""
-    duration_s: float
-    """Length, s."""
-    environment: str | None
-    """`indoor`, `outdoor` or None (drawn by the scenario sampler)."""
-    obstacle_kind: str | None
-    """Obstacle for a collision episode."""
-    fault_kind: str | None
-    """Fault for a fault episode."""
-    wheel: int | None
-    """Faulty wheel for a fault episode."""
-    severity: tuple[float, float]
-    """Fault severity range."""
-    transient_density: float
-    """Benign transient density multiplier."""
-    surface: str | None = None
-    """Floor surface (None: drawn by the scenario sampler)."""
-    drive_speed_scale: float = 1.0
-    """Factor on the cruise speeds (`sim.random_scenarios.scale_speeds`)."""
-    approach_speed_scale: float = 1.0
-    """Factor on the speeds of the legs driven at an obstacle."""
-
-    def scenario_options(self) -> ScenarioOptions:
-        """What `sim.draw_scenario` draws the episode's scenario with (before `scale_speeds`)."""
-        return ScenarioOptions(
-            duration=self.duration_s,
-            environment=self.environment,
-            obstacle_kind=self.obstacle_kind,
-            fault_kind=self.fault_kind,
-            wheel=self.wheel,
-            severity=self.severity,
-            unit_id=self.unit_id,
-            transient_density=self.transient_density,
-            surface=self.surface,
-        )
 
 
 @dataclass(frozen=True)
@@ -357,20 +299,6 @@ def window_starts(duration_s: float, hop_s: float, first_s: float = SETTLE_S) ->
     return first_s + np.arange(max(n, 0)) * hop_s
 
 
-@dataclass(frozen=True)
-class DroppedWindow:
-    """A window of a nominal episode left out because something anomalous happened in it."""
-
-    episode: str
-    """Episode folder name."""
-    start_s: float
-    """Window start, s."""
-    kind: str
-    """What happened (`collision` or `mechanical`)."""
-    sub_kind: str
-    """Obstacle or fault kind."""
-
-
 def _window_rows(
     dataset: Path, preset: Preset, specs: list[EpisodeSpec]
 ) -> tuple[list[WindowRow], list[DroppedWindow]]:
@@ -461,21 +389,15 @@ def generate(
                 f"left out {len(dropped)} window(s) of nominal episodes with an anomaly in them "
                 "(listed in manifest.json)"
             )
-        manifest = {
-            "format_version": DATASET_FORMAT_VERSION,
-            "preset": asdict(preset),
-            "seed": seed,
-            "software": software_versions(),
-            "dropped_nominal_windows": [asdict(d) for d in dropped],
-            "episodes": [
-                {
-                    **asdict(spec),
-                    "files": {name: sha256_file(tmp / spec.episode_id / name) for name in EPISODE_FILES},
-                }
-                for spec in specs
-            ],
-        }
-        write_index(tmp, manifest, rows)
+        Manifest(
+            format_version=DATASET_FORMAT_VERSION,
+            preset=preset,
+            seed=seed,
+            software=software_versions(),
+            dropped_nominal_windows=tuple(dropped),
+            episodes=tuple(ManifestEpisode(s, episode_checksums(tmp / s.episode_id)) for s in specs),
+            windows=write_window_table(tmp, rows),
+        ).save(tmp)
         os.replace(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -483,20 +405,23 @@ def generate(
     return out
 
 
-LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}
-"""Training budgets of manifests written when budgets shared the dataset presets' names."""
-
-MANIFEST_FILE, WINDOWS_FILE = "manifest.json", "windows.csv"
-"""The dataset folder's own files (each episode's are `benchmarks.episode`'s)."""
+WINDOWS_FILE = "windows.csv"
+"""The dataset folder's window table (its manifest is `benchmarks.manifest`'s, each episode's files are
+`benchmarks.episode`'s)."""
 
 
-def write_index(folder: Path, manifest: dict[str, Any], rows: list[WindowRow]) -> None:
-    """Write `windows.csv` and `manifest.json` (`manifest` plus the window table's checksum and count) into
-    a dataset folder being built; the generator and the importer both finish with it."""
+def write_window_table(folder: Path, rows: list[WindowRow]) -> ManifestWindows:
+    """Write `windows.csv` into a dataset folder being built; its manifest entry (checksum and count). The
+    generator and the importer both finish with it and `Manifest.save`."""
     _write_windows_csv(folder / WINDOWS_FILE, rows)
-    windows = {"file": WINDOWS_FILE, "sha256": sha256_file(folder / WINDOWS_FILE), "count": len(rows)}
-    doc = {**manifest, "windows": windows}
-    (folder / MANIFEST_FILE).write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
+    return ManifestWindows(file=WINDOWS_FILE, sha256=sha256_file(folder / WINDOWS_FILE), count=len(rows))
+
+
+def episode_checksums(folder: Path, source: str = SIMULATED) -> dict[str, str]:
+    """File name -> sha256 of every file of the episode folder `folder` (a `simulate`d or an `import`ed
+    one): its manifest entry's `files`."""
+    names = IMPORTED_EPISODE_FILES if source == IMPORTED else EPISODE_FILES
+    return {name: sha256_file(Path(folder) / name) for name in names}
 
 
 def _write_windows_csv(path: Path, rows: list[WindowRow]) -> None:
@@ -513,7 +438,7 @@ class Dataset:
 
     path: Path
     """Dataset folder."""
-    manifest: dict[str, Any]
+    manifest: Manifest
     """The manifest."""
     windows: list[WindowRow]
     """The window table."""
@@ -521,23 +446,11 @@ class Dataset:
     @property
     def preset(self) -> Preset:
         """The preset the dataset was generated with."""
-        fields: dict[str, Any] = {
-            k: tuple(v) if isinstance(v, list) else v for k, v in self.manifest["preset"].items()
-        }
-        scale = str(fields.get("method_scale"))
-        fields["method_scale"] = LEGACY_SCALES.get(scale, scale)  # written before budgets were named apart
-        return Preset(**fields)
+        return self.manifest.preset
 
     def episode_specs(self) -> dict[str, EpisodeSpec]:
         """Every episode's plan, by episode id, as `generate` recorded it in the manifest."""
-        names = {f.name for f in dataclasses.fields(EpisodeSpec)}
-        out: dict[str, EpisodeSpec] = {}
-        for entry in self.manifest["episodes"]:
-            kw: dict[str, Any] = {
-                k: tuple(v) if isinstance(v, list) else v for k, v in entry.items() if k in names
-            }
-            out[entry["episode_id"]] = EpisodeSpec(**kw)
-        return out
+        return {e.episode_id: e.spec for e in self.manifest.episodes}
 
     @property
     def fingerprint(self) -> str:
@@ -547,31 +460,31 @@ class Dataset:
     @property
     def seed(self) -> int:
         """The dataset seed (0 for an import, which has none)."""
-        return int(self.manifest["seed"])
+        return self.manifest.seed
 
     @property
     def preset_name(self) -> str:
         """Name of the preset it was generated with (`import-<layout>` for an import)."""
-        return str(self.manifest["preset"]["name"])
+        return self.manifest.preset.name
 
     @property
     def source(self) -> str:
         """`simulate` (generated) or `import` (recordings)."""
-        return str(self.manifest.get("source", SIMULATED))
+        return self.manifest.source
 
     @property
     def modalities(self) -> tuple[str, ...]:
         """The sensors the dataset carries (a generated one: audio and IMU)."""
-        return tuple(self.manifest.get("modalities", ALL_MODALITIES))
+        return self.manifest.modalities
 
     @property
     def episode_ids(self) -> list[str]:
         """Every episode id, in manifest order (an episode's index here seeds its robustness draws)."""
-        return [str(e["episode_id"]) for e in self.manifest["episodes"]]
+        return [e.episode_id for e in self.manifest.episodes]
 
     def categories(self) -> dict[str, str]:
         """Episode id -> category (`nominal`, `collision`, `fault`)."""
-        return {str(e["episode_id"]): str(e["category"]) for e in self.manifest["episodes"]}
+        return {e.episode_id: e.spec.category for e in self.manifest.episodes}
 
     def rows(self, split: str) -> list[WindowRow]:
         """Window rows of one split."""
@@ -619,17 +532,7 @@ def open_dataset(path: Path, verify: bool = True, progress: bool = False) -> Dat
     `progress` shows a bar over the files while their sha256 is checked.
     """
     path = Path(path)
-    manifest_path = path / MANIFEST_FILE
-    if not manifest_path.is_file():
-        raise InputNotFoundError(f"not a dataset (no manifest.json): {path}")
-    manifest = json.loads(manifest_path.read_text())
-    version = manifest.get("format_version")
-    if version not in READABLE_DATASET_FORMATS:
-        readable = " or ".join(str(v) for v in READABLE_DATASET_FORMATS)
-        raise DatasetError(
-            f"{manifest_path}: dataset format_version {version}, this software reads format_version "
-            f"{readable}; generate the dataset again with `msvdd-bench generate`"
-        )
+    manifest = Manifest.load(path)
     if verify:
         verify_dataset(path, manifest, progress=progress)
     windows_path = path / WINDOWS_FILE
@@ -676,10 +579,10 @@ def check_dev(dev: Dataset, evaluated: Dataset) -> str:
 
 def _audio_checksums(data: Dataset) -> set[str]:
     """The sha256 of every episode's audio: what identifies a recording whatever it was named."""
-    return {str(e["files"][AUDIO_FILE]) for e in data.manifest["episodes"]}
+    return {e.files[AUDIO_FILE] for e in data.manifest.episodes}
 
 
-def dataset_fingerprint(manifest: dict[str, Any]) -> str:
+def dataset_fingerprint(manifest: Manifest) -> str:
     """The dataset's identity: sha256 over the sha256 of every file its manifest lists, with their paths.
 
     Two datasets with the same fingerprint hold the same bytes in every verified file (the window table and
@@ -687,21 +590,21 @@ def dataset_fingerprint(manifest: dict[str, Any]) -> str:
     software give the same fingerprint. Run reports record it, and `msvdd-bench compare` refuses runs whose
     fingerprints differ.
     """
-    entries = [f"windows.csv {manifest['windows']['sha256']}"]
-    for episode in manifest["episodes"]:
-        for name, digest in sorted(episode["files"].items()):
-            entries.append(f"{episode['episode_id']}/{name} {digest}")
+    entries = [f"windows.csv {manifest.windows.sha256}"]
+    for episode in manifest.episodes:
+        for name, digest in sorted(episode.files.items()):
+            entries.append(f"{episode.episode_id}/{name} {digest}")
     return hashlib.sha256("\n".join(sorted(entries)).encode()).hexdigest()
 
 
-def verify_dataset(path: Path, manifest: dict[str, Any], progress: bool = False) -> None:
+def verify_dataset(path: Path, manifest: Manifest, progress: bool = False) -> None:
     """Check that every file the manifest lists exists and has its recorded sha256 (a bar if `progress`)."""
-    expected: list[tuple[Path, str]] = [(path / WINDOWS_FILE, manifest["windows"]["sha256"])]
-    for episode in manifest["episodes"]:
-        for name, digest in episode["files"].items():
-            expected.append((path / episode["episode_id"] / name, digest))
+    expected: list[tuple[Path, str]] = [(path / WINDOWS_FILE, manifest.windows.sha256)]
+    for episode in manifest.episodes:
+        for name, digest in episode.files.items():
+            expected.append((path / episode.episode_id / name, digest))
     for file, digest in tqdm(expected, desc="verifying sha256", unit="file", disable=not progress):
         if not file.is_file():
             raise DatasetError(f"missing dataset file: {file}")
         if sha256_file(file) != digest:
-            raise DatasetError(f"checksum mismatch: {file} (sha256 differs from manifest.json)")
+            raise DatasetError(f"checksum mismatch: {file} (sha256 differs from {MANIFEST_FILE})")

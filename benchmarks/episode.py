@@ -9,7 +9,8 @@ trace: its `meta.json` says `"source": "import"` and lists its `modalities`, and
 `trace.npz` (`IMPORTED_EPISODE_FILES`); `write_imported_episode` writes it.
 
 This module owns the episode folder: no other module opens an episode's files by name. Readers that need
-one file only use `read_events`, `read_trace`, `read_trace_signals` or `audio_file`.
+one file only use `read_events`, `read_trace`, `read_trace_signals` or `audio_file`. `events.json` is typed
+(`EpisodeEvents`: contacts, benign transients, faults, and an import's labelled anomaly spans).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 
 import synth_audio
 from benchmarks.errors import InputNotFoundError, UserError
+from benchmarks.json_records import plain, read_json, read_record, write_json
 from sim.trace import Trace
 from sim.vocab import LABELS, SUB_KINDS
 
@@ -135,7 +137,7 @@ class Episode:
             raise EpisodeError(f"{self.path}: imported from recordings, so it has no simulator trace")
         return read_trace(self.path)
 
-    def events(self) -> dict[str, Any]:
+    def events(self) -> EpisodeEvents:
         """The human-readable events (contacts, transients, faults; `anomalies` of an import)."""
         return read_events(self.path)
 
@@ -154,9 +156,9 @@ def audio_file(folder: Path) -> Path:
     return Path(folder) / AUDIO_FILE
 
 
-def read_events(folder: Path) -> dict[str, Any]:
+def read_events(folder: Path) -> EpisodeEvents:
     """An episode folder's `events.json`: contacts, transients, faults (and an import's `anomalies`)."""
-    return dict(json.loads((Path(folder) / EVENTS_FILE).read_text()))
+    return EpisodeEvents.load(folder)
 
 
 def read_trace(folder: Path) -> Trace:
@@ -188,47 +190,162 @@ def software_versions() -> dict[str, str]:
     return out
 
 
-def events_dict(trace: Trace) -> dict[str, Any]:
-    """Contacts, transients and faults of a trace as JSON-able lists."""
-    c, t = trace.contacts, trace.transients
-    return {
-        "contacts": [
-            {
-                "time": float(c.time[i]),
-                "position": [float(v) for v in c.position[i]],
-                "normal": [float(v) for v in c.normal[i]],
-                "impulse": float(c.impulse[i]),
-                "normal_speed": float(c.normal_speed[i]),
-                "duration": float(c.duration[i]),
-                "obstacle_kind": c.obstacle_kind[i],
-                "material": c.material[i],
-            }
-            for i in range(len(c.time))
-        ],
-        "transients": [
-            {
-                "time": float(t.time[i]),
-                "position": [float(v) for v in t.position[i]],
-                "wheel": int(t.wheel[i]),
-                "impulse": float(t.impulse[i]),
-                "kind": t.kind[i],
-            }
-            for i in range(len(t.time))
-        ],
-        "faults": [
-            {
-                "kind": f.kind,
-                "wheel": f.wheel,
-                "wheel_name": trace.robot.wheel_names[f.wheel],
-                "severity": f.severity,
-                "onset": f.onset,
-                "duration": f.duration,
-                "defect_order": f.defect_order,
-                "resonance_hz": f.resonance_hz,
-            }
-            for f in trace.faults
-        ],
-    }
+@dataclass(frozen=True)
+class ContactEvent:
+    """A robot-obstacle contact (one row of `sim.trace.ContactEvents`)."""
+
+    time: float
+    """Time of first contact, s."""
+    position: tuple[float, ...]
+    """(x, y, z) contact point in the world frame, m."""
+    normal: tuple[float, ...]
+    """(x, y, z) unit contact normal, from the obstacle to the robot."""
+    impulse: float
+    """Normal impulse over the event, N s."""
+    normal_speed: float
+    """Approach speed along the normal at first contact, m/s."""
+    duration: float
+    """How long the contact lasted, s."""
+    obstacle_kind: str
+    """Obstacle kind (`sim.vocab.OBSTACLE_KINDS`)."""
+    material: str
+    """Its material (`sim.vocab.MATERIALS`)."""
+
+
+@dataclass(frozen=True)
+class TransientEvent:
+    """A wheel meeting a benign floor feature (one row of `sim.trace.TransientEvents`)."""
+
+    time: float
+    """Time of the strike, s."""
+    position: tuple[float, ...]
+    """(x, y, z) where, in the world frame, m."""
+    wheel: int
+    """Index of the wheel that met it."""
+    impulse: float
+    """Impulse of the strike, N s."""
+    kind: str
+    """Feature kind (`sim.vocab.TRANSIENT_KINDS`)."""
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """An injected wheel fault (`sim.trace.FaultRecord`, with its wheel's name)."""
+
+    kind: str
+    """Fault kind (`sim.vocab.FAULT_KINDS`)."""
+    wheel: int
+    """Index of the faulty wheel."""
+    wheel_name: str
+    """Its name (`sim.trace.RobotInfo.wheel_names`)."""
+    severity: float
+    """0 (no effect) .. 1 (severe)."""
+    onset: float
+    """Start time, s."""
+    duration: float
+    """Length, s."""
+    defect_order: float
+    """Defect events per wheel revolution."""
+    resonance_hz: float
+    """Structural resonance the defect excites, Hz."""
+
+
+@dataclass(frozen=True)
+class AnomalySpan:
+    """A labelled anomaly of an imported recording."""
+
+    onset: float
+    """Start, s."""
+    end: float
+    """End, s."""
+    kind: str
+    """`collision` or `mechanical`."""
+    sub_kind: str
+    """What it was (free text from the source, or `unspecified`)."""
+
+
+@dataclass(frozen=True)
+class EpisodeEvents:
+    """An episode's `events.json`: what happened in it, human-readable."""
+
+    contacts: tuple[ContactEvent, ...] = ()
+    """Robot-obstacle contacts."""
+    transients: tuple[TransientEvent, ...] = ()
+    """Benign floor features met."""
+    faults: tuple[FaultEvent, ...] = ()
+    """The fault schedule."""
+    anomalies: tuple[AnomalySpan, ...] | None = None
+    """An imported episode's labelled anomaly spans; None (not written) for a simulated one."""
+
+    @classmethod
+    def of_trace(cls, trace: Trace) -> EpisodeEvents:
+        """The events of a simulated trace."""
+        c, t = trace.contacts, trace.transients
+        return cls(
+            contacts=tuple(
+                ContactEvent(
+                    time=float(c.time[i]),
+                    position=tuple(float(v) for v in c.position[i]),
+                    normal=tuple(float(v) for v in c.normal[i]),
+                    impulse=float(c.impulse[i]),
+                    normal_speed=float(c.normal_speed[i]),
+                    duration=float(c.duration[i]),
+                    obstacle_kind=c.obstacle_kind[i],
+                    material=c.material[i],
+                )
+                for i in range(len(c.time))
+            ),
+            transients=tuple(
+                TransientEvent(
+                    time=float(t.time[i]),
+                    position=tuple(float(v) for v in t.position[i]),
+                    wheel=int(t.wheel[i]),
+                    impulse=float(t.impulse[i]),
+                    kind=t.kind[i],
+                )
+                for i in range(len(t.time))
+            ),
+            faults=tuple(
+                FaultEvent(
+                    kind=f.kind,
+                    wheel=f.wheel,
+                    wheel_name=trace.robot.wheel_names[f.wheel],
+                    severity=f.severity,
+                    onset=f.onset,
+                    duration=f.duration,
+                    defect_order=f.defect_order,
+                    resonance_hz=f.resonance_hz,
+                )
+                for f in trace.faults
+            ),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The document `save` writes (JSON values only)."""
+        doc: dict[str, Any] = plain(self)
+        if self.anomalies is None:
+            del doc["anomalies"]
+        return doc
+
+    @classmethod
+    def from_dict(cls, doc: object, file: Path | str = EVENTS_FILE) -> EpisodeEvents:
+        """Read and check an events document; `file` names it in an `EpisodeError`."""
+        return read_record(cls, doc, str(file), EpisodeError)
+
+    @classmethod
+    def load(cls, folder: Path) -> EpisodeEvents:
+        """Read the `events.json` of the episode folder `folder`; an `EpisodeError` names a missing file or
+        a missing, ill-typed or unknown field."""
+        path = Path(folder) / EVENTS_FILE
+        if not path.is_file():
+            raise EpisodeError(f"{folder}: missing episode file {EVENTS_FILE}")
+        return cls.from_dict(read_json(path, EpisodeError), path)
+
+    def save(self, folder: Path) -> Path:
+        """Write `events.json` into the episode folder `folder` (atomically); returns its path."""
+        path = Path(folder) / EVENTS_FILE
+        write_json(path, self.to_dict())
+        return path
 
 
 def write_episode(
@@ -268,8 +385,8 @@ def write_episode(
         synth_audio.write(tmp / AUDIO_FILE, audio, bits=EPISODE_AUDIO_BITS, dither_seed=meta.seed)
         imu.write(tmp / IMU_FILE)
         trace.save(tmp / TRACE_FILE)
-        _write_json(tmp / EVENTS_FILE, events_dict(trace))
-        _write_json(tmp / META_FILE, meta_doc)
+        EpisodeEvents.of_trace(trace).save(tmp)
+        write_json(tmp / META_FILE, meta_doc)
     return directory
 
 
@@ -282,7 +399,7 @@ def write_imported_episode(
     meta: EpisodeMeta,
     audio: synth_audio.Audio,
     imu: ImuArrays,
-    anomalies: list[dict[str, Any]],
+    anomalies: tuple[AnomalySpan, ...],
     modalities: tuple[str, ...],
     recording: dict[str, Any],
 ) -> Path:
@@ -293,7 +410,7 @@ def write_imported_episode(
         meta: identity and split (`snr_db` is not known for a recording and is written as null).
         audio: the resampled recording.
         imu: the IMU at 200 Hz with its label timeline (zeros where the recording has no IMU).
-        anomalies: the labelled spans, `{onset, end, kind, sub_kind}` each.
+        anomalies: the labelled spans.
         modalities: the sensors recorded (`ALL_MODALITIES` or a part of it).
         recording: provenance of the recording (name, source file, options).
     """
@@ -310,12 +427,11 @@ def write_imported_episode(
         "recording": recording,
         "software": software_versions(),
     }
-    events = {"contacts": [], "transients": [], "faults": [], "anomalies": anomalies}
     with _staged(directory) as tmp:
         synth_audio.write(tmp / AUDIO_FILE, audio, bits=IMPORTED_AUDIO_BITS)
         imu.write(tmp / IMU_FILE)
-        _write_json(tmp / EVENTS_FILE, events)
-        _write_json(tmp / META_FILE, meta_doc)
+        EpisodeEvents(anomalies=tuple(anomalies)).save(tmp)
+        write_json(tmp / META_FILE, meta_doc)
     return directory
 
 
@@ -403,7 +519,3 @@ def read_episode(directory: Path) -> Episode:
         source=source,
         modalities=tuple(meta_doc.get("modalities", ALL_MODALITIES)),
     )
-
-
-def _write_json(path: Path, doc: Any) -> None:
-    path.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")

@@ -111,9 +111,9 @@ def event_onsets(dataset: Dataset, rows: list[WindowRow]) -> tuple[np.ndarray, n
     onsets: list[float] = []
     for episode_id in sorted({r.episode for r in rows if r.kind != "normal"}):
         events = read_events(dataset.path / episode_id)
-        times = [c["time"] for c in events["contacts"]] if category[episode_id] == "collision" else []
-        times += [f["onset"] for f in events["faults"] if f["severity"] > 0]
-        times += [a["onset"] for a in events.get("anomalies", [])]
+        times = [c.time for c in events.contacts] if category[episode_id] == "collision" else []
+        times += [f.onset for f in events.faults if f.severity > 0]
+        times += [a.onset for a in events.anomalies or ()]
         episodes += [episode_id] * len(times)
         onsets += times
     return np.asarray(episodes, dtype=str), np.asarray(onsets, dtype=np.float64)

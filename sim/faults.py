@@ -36,19 +36,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.scenario import Fault
-from sim.trace import FaultRecord, RobotInfo
+from sim.trace import (
+    BEARING_BALL_DIAMETER,
+    BEARING_BALLS,
+    BEARING_CONTACT_ANGLE,
+    BEARING_PITCH_DIAMETER,
+    IMBALANCE_ME,
+    FaultRecord,
+    RobotInfo,
+)
 
-BEARING_BALLS = 9
-"""Rolling elements in the wheel bearing (a 6001-size deep-groove ball bearing)."""
-BEARING_BALL_DIAMETER = 0.00635
-"""Ball diameter, m."""
-BEARING_PITCH_DIAMETER = 0.0215
-"""Pitch diameter, m."""
-BEARING_CONTACT_ANGLE = 0.0
-"""Contact angle, rad."""
-
-IMBALANCE_ME = 0.03
-"""Eccentric mass x radius at severity 1, kg m."""
 FLAT_SPOT_FORCE = 200.0
 """Peak vertical force of the flat-spot strike at severity 1 and full speed, N."""
 FLAT_SPOT_ARC = 0.5

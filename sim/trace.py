@@ -117,6 +117,23 @@ class TransientEvents:
     """(n,) height of the floor feature, m: the step the wheel climbs (what the audio's strike needs)."""
 
 
+# What a fault record means physically, the same for every unit and so not stored in the trace: the wheel
+# bearing's geometry and the imbalance at severity 1. The physics applies them (`sim.faults`: the bearing's
+# defect order, the imbalance's force) and the audio sounds them (`synth_audio.faults`: the balls' strikes,
+# the wheel's load modulation); both read them here.
+BEARING_BALLS = 9
+"""Rolling elements in the wheel bearing (a 6001-size deep-groove ball bearing)."""
+BEARING_BALL_DIAMETER = 0.00635
+"""Ball diameter, m."""
+BEARING_PITCH_DIAMETER = 0.0215
+"""Pitch diameter, m."""
+BEARING_CONTACT_ANGLE = 0.0
+"""Contact angle, rad."""
+
+IMBALANCE_ME = 0.03
+"""Eccentric mass x radius of an imbalance fault at severity 1, kg m (`FaultRecord.severity` scales it)."""
+
+
 @dataclass(frozen=True)
 class FaultRecord:
     """One injected wheel fault, with the frequencies the audio stage needs."""

@@ -12,7 +12,7 @@ m is the robot's mass, W its wheel count, r the wheel radius, v the faulty wheel
 - bearing: an outer-race spall of length l = s `SPALL_M`. Each rolling element crossing it strikes the
   spall's edge at angle asin(l / d) (d the ball diameter): J = (m / W) v_c l / d, with v_c = omega
   D_pitch / 4 the balls' speed over the race; at the ball-pass order (BPFO) with 1-2 % slip and jitter.
-- imbalance: an eccentric mass m e = s `sim.faults.IMBALANCE_ME` loads and unloads its wheel once per
+- imbalance: an eccentric mass m e = s `sim.trace.IMBALANCE_ME` loads and unloads its wheel once per
   revolution with F = m e omega^2: the wheel's rolling and motor sound is amplitude-modulated at the
   rotation rate with depth F / (m g / W) (the tyre's noise follows its load); the IMU feels F as forward
   and vertical vibration at the rotation rate (`sim.faults`).
@@ -31,8 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.faults import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, IMBALANCE_ME
-from sim.trace import FaultRecord
+from sim.trace import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, IMBALANCE_ME, FaultRecord
 from synth_audio.drive import BLOCK, GRAVITY, NOMINAL_SPEED, Drive
 from synth_audio.dsp import overlap_add
 from synth_audio.impacts import IMPACT_SCALE, Material, struck_response

@@ -20,7 +20,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,18 +29,15 @@ from tqdm import tqdm
 
 import synth_audio
 from benchmarks.dataset import (
-    DATASET_FORMAT_VERSION,
-    MANIFEST_FILE,
-    EpisodeSpec,
     WindowRow,
+    episode_checksums,
     label_windows,
-    sha256_file,
     window_starts,
-    write_index,
+    write_window_table,
 )
 from benchmarks.episode import (
     IMPORTED,
-    IMPORTED_EPISODE_FILES,
+    AnomalySpan,
     EpisodeMeta,
     ImuArrays,
     software_versions,
@@ -49,6 +46,14 @@ from benchmarks.episode import (
 from benchmarks.errors import OutputExistsError
 from benchmarks.importers.config import ImportConfig, SourceError
 from benchmarks.importers.signals import OUT_AUDIO_RATE
+from benchmarks.manifest import (
+    DATASET_FORMAT_VERSION,
+    EpisodeSpec,
+    Manifest,
+    ManifestEpisode,
+    ManifestImport,
+    is_dataset_folder,
+)
 from benchmarks.presets import Preset
 from msvdd.contract import IMU_RATE, WINDOW_S
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
@@ -235,10 +240,10 @@ def _write_episode(
             f"recording {plan.name!r}: {duration:.3f} s long; allowed: at least one {WINDOW_S:g} s window"
         )
     category = _category(rec.spans)
-    anomalies = [
-        {"onset": s.start_s, "end": min(s.end_s, duration), "kind": s.kind, "sub_kind": s.sub_kind}
+    anomalies = tuple(
+        AnomalySpan(onset=s.start_s, end=min(s.end_s, duration), kind=s.kind, sub_kind=s.sub_kind)
         for s in sorted(rec.spans, key=lambda s: s.start_s)
-    ]
+    )
     imu = ImuArrays(
         time=np.arange(n_imu, dtype=np.float64) / IMU_RATE,
         vel_z=vel_z,
@@ -328,7 +333,7 @@ def _check_output(out: Path, source: Path, replace: bool) -> None:
             raise OutputExistsError(
                 f"dataset folder exists already: {out} (remove it, choose another --out, or pass --replace)"
             )
-        if not out.is_dir() or (any(out.iterdir()) and not (out / MANIFEST_FILE).is_file()):
+        if not out.is_dir() or (any(out.iterdir()) and not is_dataset_folder(out)):
             raise OutputExistsError(
                 f"--replace: {out} is not a dataset folder (no manifest.json); it is left alone"
             )
@@ -380,7 +385,7 @@ def write_dataset(
             counts[(split, category)] = index + 1
             episode_id = f"{split}-{category}-{index:04d}"
             spec, rows = _write_episode(tmp, episode_id, split, plan, rec, config)
-            files = {name: sha256_file(tmp / episode_id / name) for name in IMPORTED_EPISODE_FILES}
+            files = episode_checksums(tmp / episode_id, IMPORTED)
             written.append(_Written(spec, plan.name, rows, files))
             modalities.add(("audio",) if rec.vel_z is None else ("audio", "imu"))
         if len(modalities) > 1:
@@ -388,25 +393,28 @@ def write_dataset(
         rows = [r for w in written for r in w.rows]
         rows = [dataclasses.replace(r, window_id=i) for i, r in enumerate(rows)]
         preset = _preset(layout, Path(source), config, written)
-        manifest = {
-            "format_version": DATASET_FORMAT_VERSION,
-            "source": IMPORTED,
-            "modalities": list(next(iter(modalities))),
-            "import": {"layout": layout, "source": str(Path(source).resolve()), **extra},
-            "preset": asdict(preset),
-            "seed": 0,
-            "software": software_versions(),
-            "dropped_nominal_windows": [],
-            "episodes": [
-                {**asdict(w.spec), "snr_db": None, "recording": w.name, "files": w.files} for w in written
-            ],
-        }
-        write_index(tmp, manifest, rows)
+        Manifest(
+            format_version=DATASET_FORMAT_VERSION,
+            preset=preset,
+            seed=0,
+            software=software_versions(),
+            dropped_nominal_windows=(),
+            episodes=tuple(ManifestEpisode(w.spec, w.files, recording=w.name) for w in written),
+            windows=write_window_table(tmp, rows),
+            imported=_import_section(layout, Path(source), extra),
+            modalities=next(iter(modalities)),
+        ).save(tmp)
         _swap_into_place(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def _import_section(layout: str, source: Path, extra: dict[str, Any]) -> ManifestImport:
+    """The manifest's `import` section from the layout's `extra` (options, recordings and its own facts)."""
+    facts = {k: v for k, v in extra.items() if k not in ("options", "recordings")}
+    return ManifestImport(layout, str(source.resolve()), extra["options"], extra["recordings"], facts)
 
 
 def _swap_into_place(tmp: Path, out: Path) -> None:

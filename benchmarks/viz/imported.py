@@ -9,10 +9,9 @@ from benchmarks.viz.events import TextEvent
 
 def span_events(episode: Episode) -> list[TextEvent]:
     """An ERROR at each labelled anomaly's onset and an INFO at its end (from events.json `anomalies`)."""
-    doc = episode.events()
     out: list[TextEvent] = []
-    for span in doc.get("anomalies", []):
-        what = f"{span['kind']}: {span['sub_kind']}"
-        out.append(TextEvent(float(span["onset"]), "ERROR", f"labelled anomaly starts ({what})"))
-        out.append(TextEvent(float(span["end"]), "INFO", f"labelled anomaly ends ({what})"))
+    for span in episode.events().anomalies or ():
+        what = f"{span.kind}: {span.sub_kind}"
+        out.append(TextEvent(float(span.onset), "ERROR", f"labelled anomaly starts ({what})"))
+        out.append(TextEvent(float(span.end), "INFO", f"labelled anomaly ends ({what})"))
     return out

@@ -12,7 +12,8 @@ import soundfile as sf
 
 import benchmarks.dataset as ds
 import synth_audio
-from benchmarks.episode import EPISODE_AUDIO_BITS, EPISODE_FILES, read_episode
+from benchmarks.episode import EPISODE_AUDIO_BITS, EPISODE_FILES, read_episode, read_events
+from benchmarks.manifest import READABLE_DATASET_FORMATS, Manifest
 from msvdd.contract import AUDIO_LEN, IMU_LEN
 from sim.trace import Trace, _flatten
 from synth_audio.io import quantise
@@ -21,12 +22,12 @@ from synth_audio.io import quantise
 def test_layout_manifest_and_windows(tiny_dataset: Path) -> None:
     dataset = ds.open_dataset(tiny_dataset)
     manifest = dataset.manifest
-    assert manifest["format_version"] == ds.DATASET_FORMAT_VERSION
-    assert manifest["preset"]["name"] == "tiny"
-    for episode in manifest["episodes"]:
-        folder = tiny_dataset / episode["episode_id"]
+    assert manifest.format_version == ds.DATASET_FORMAT_VERSION
+    assert manifest.preset.name == "tiny"
+    for episode in manifest.episodes:
+        folder = tiny_dataset / episode.episode_id
         assert sorted(p.name for p in folder.iterdir()) == sorted(EPISODE_FILES)
-        assert set(episode["files"]) == set(EPISODE_FILES)
+        assert set(episode.files) == set(EPISODE_FILES)
     kinds = {(r.split, r.kind) for r in dataset.windows}
     assert ("train", "normal") in kinds and ("val", "normal") in kinds
     assert {("test", "normal"), ("test", "collision"), ("test", "mechanical")} <= kinds
@@ -48,17 +49,17 @@ def test_windows_have_the_papers_shapes(tiny_dataset: Path) -> None:
 def test_collision_windows_hold_the_contact(tiny_dataset: Path) -> None:
     dataset = ds.open_dataset(tiny_dataset)
     for row in (r for r in dataset.windows if r.kind == "collision"):
-        events = json.loads((tiny_dataset / row.episode / "events.json").read_text())
-        times = [c["time"] for c in events["contacts"] if c["obstacle_kind"] == row.sub_kind]
+        events = read_events(tiny_dataset / row.episode)
+        times = [c.time for c in events.contacts if c.obstacle_kind == row.sub_kind]
         assert any(row.start_s - 0.5 <= t <= row.start_s + 2.0 for t in times), (row, times)
 
 
 def test_same_seed_same_checksums(tiny_dataset: Path, tmp_path: Path) -> None:
     again = ds.generate("tiny", 0, tmp_path / "again", workers=1, progress=False)
-    first = json.loads((tiny_dataset / "manifest.json").read_text())
-    second = json.loads((again / "manifest.json").read_text())
-    assert first["episodes"] == second["episodes"]
-    assert first["windows"] == second["windows"]
+    first = ds.open_dataset(tiny_dataset, verify=False).manifest
+    second = ds.open_dataset(again).manifest
+    assert first.episodes == second.episodes
+    assert first.windows == second.windows
     assert ds.dataset_fingerprint(first) == ds.dataset_fingerprint(second)
 
 
@@ -87,7 +88,7 @@ def test_missing_file_and_other_version_are_named(tiny_dataset: Path, tmp_path: 
 
 
 def test_a_format_1_dataset_is_refused_naming_both_versions(tiny_dataset: Path, tmp_path: Path) -> None:
-    assert ds.DATASET_FORMAT_VERSION == 3 and ds.READABLE_DATASET_FORMATS == (2, 3)
+    assert ds.DATASET_FORMAT_VERSION == 3 and READABLE_DATASET_FORMATS == (2, 3)
     copy = tmp_path / "old"
     copy.mkdir()
     manifest = json.loads((tiny_dataset / "manifest.json").read_text())
@@ -99,8 +100,8 @@ def test_a_format_1_dataset_is_refused_naming_both_versions(tiny_dataset: Path, 
 
 def test_snr_of_every_episode_is_recorded_from_the_presets_range(tiny_dataset: Path) -> None:
     manifest = ds.open_dataset(tiny_dataset, verify=False).manifest
-    low, high = manifest["preset"]["snr_db"]
-    assert all(low <= e["snr_db"] <= high for e in manifest["episodes"])
+    low, high = manifest.preset.snr_db
+    assert all(low <= e.spec.snr_db <= high for e in manifest.episodes)
     assert ds.open_dataset(tiny_dataset, verify=False).preset.snr_db == (low, high)
 
 
@@ -140,7 +141,7 @@ def test_a_dev_dataset_must_be_another_seed_of_the_same_preset(tiny_dataset: Pat
         shutil.copy(tiny_dataset / "windows.csv", folder / "windows.csv")
         return folder
 
-    seed = int(evaluated.manifest["seed"])
+    seed = evaluated.seed
     text = check_dev(open_dataset(copy(seed + 1, "tiny"), verify=False), evaluated)
     assert f"seed {seed + 1}" in text
     with pytest.raises(DatasetError, match=f"seed {seed} is the evaluated dataset's seed"):
@@ -210,6 +211,9 @@ def test_a_dataset_of_the_previous_format_still_opens_and_loads(tiny_dataset: Pa
 def test_a_manifest_with_the_former_budget_names_reads_as_the_budgets(
     tiny_dataset: Path, old: str, new: str
 ) -> None:
+    doc = json.loads((tiny_dataset / "manifest.json").read_text())
+    doc["preset"]["method_scale"] = old
+    manifest = Manifest.from_dict(doc)
+    assert manifest.preset.method_scale == new
     data = ds.open_dataset(tiny_dataset, verify=False)
-    manifest = {**data.manifest, "preset": {**data.manifest["preset"], "method_scale": old}}
     assert ds.Dataset(data.path, manifest, data.windows).preset.method_scale == new

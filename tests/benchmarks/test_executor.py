@@ -67,7 +67,7 @@ def test_ray_gives_the_same_checksums_as_local_processes(
     on_ray = ds.generate("tiny", 0, tmp_path / "ray", progress=False, executor=RayExecutor())
     local = ds.open_dataset(tiny_dataset, verify=False)
     ray_manifest = ds.open_dataset(on_ray).manifest  # verifies every file
-    assert ray_manifest["episodes"] == local.manifest["episodes"]
+    assert ray_manifest.episodes == local.manifest.episodes
     assert ds.dataset_fingerprint(ray_manifest) == local.fingerprint
     assert sorted(p.name for p in on_ray.iterdir()) == sorted(p.name for p in tiny_dataset.iterdir())
 
@@ -89,7 +89,7 @@ def test_ray_keeps_task_order_and_reraises_a_tasks_own_error(local_ray: None) ->
 
 def test_a_retried_episode_task_leaves_the_same_files(tiny_dataset: Path, tmp_path: Path) -> None:
     manifest = ds.open_dataset(tiny_dataset, verify=False).manifest
-    entry = next(e for e in manifest["episodes"] if e["episode_id"] == "test-nominal-000")
+    entry = next(e for e in manifest.episodes if e.episode_id == "test-nominal-000")
     spec = ds.open_dataset(tiny_dataset, verify=False).episode_specs()["test-nominal-000"]
     # An earlier attempt left a copy at the episode's place (with a stray file in it): the retry replaces
     # it with the same bytes, whole.
@@ -97,7 +97,7 @@ def test_a_retried_episode_task_leaves_the_same_files(tiny_dataset: Path, tmp_pa
     (tmp_path / spec.episode_id / "junk").write_text("half-written")
     path = ds.build_episode(spec, tmp_path)
     assert path == tmp_path / spec.episode_id
-    assert {n: ds.sha256_file(path / n) for n in entry["files"]} == entry["files"]
+    assert ds.episode_checksums(path) == entry.files
     assert sorted(p.name for p in tmp_path.iterdir()) == [spec.episode_id]  # no staging folder left
     assert not (path / "junk").exists()
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from rerun.chunk import RrdReader
 
 from benchmarks.cli import main
 from benchmarks.dataset import Dataset, open_dataset
-from benchmarks.episode import EpisodeError, read_episode
+from benchmarks.episode import AnomalySpan, EpisodeError, read_episode, read_events
 from benchmarks.errors import OutputExistsError
 from benchmarks.importers import (
     FolderConfig,
@@ -27,6 +28,7 @@ from benchmarks.importers import (
     parse_imu_columns,
 )
 from benchmarks.importers.writer import Planned, Recording, assign_splits
+from benchmarks.manifest import Manifest
 from benchmarks.modalities import MissingModalityError
 from benchmarks.pipeline import score_and_measure, train_method
 from msvdd.contract import AUDIO_LEN, IMU_LEN
@@ -168,13 +170,13 @@ def windows(windows_source: Path, tmp_path_factory: pytest.TempPathFactory) -> P
 def test_mimii_dataset_is_audio_only_split_per_machine_and_has_no_trace(mimii: Path) -> None:
     data = open_dataset(mimii)  # every sha256 verified
     manifest = data.manifest
-    assert manifest["source"] == "import" and manifest["modalities"] == ["audio"]
-    assert manifest["import"]["layout"] == "mimii"
-    assert manifest["import"]["units"] == {"0": "fan/id_00", "1": "fan/id_02"}
+    assert manifest.source == "import" and manifest.modalities == ("audio",)
+    assert manifest.imported is not None and manifest.imported.layout == "mimii"
+    assert manifest.imported.facts["units"] == {"0": "fan/id_00", "1": "fan/id_02"}
     assert data.preset.name == "import-mimii" and data.preset.method_scale == "smoke"
-    recordings = {e["recording"]: e for e in manifest["episodes"]}
+    recordings = {e.recording: e for e in manifest.episodes}
     assert len(recordings) == 17  # the hidden ._ file is not a clip
-    split_of = {name.split("/", 2)[2]: e["split"] for name, e in recordings.items()}
+    split_of = {str(name).split("/", 2)[2]: e.spec.split for name, e in recordings.items()}
     # id_00: 8 normal -> last 2 (25 %) test, then 1 of the other 6 (10 %, rounded) val; id_02: 1 test, 0 val.
     assert [split_of[f"id_00/normal/{i:08d}"] for i in range(8)] == ["train"] * 5 + ["val"] + ["test"] * 2
     assert [split_of[f"id_02/normal/{i:08d}"] for i in range(4)] == ["train"] * 3 + ["test"]
@@ -187,7 +189,7 @@ def test_mimii_dataset_is_audio_only_split_per_machine_and_has_no_trace(mimii: P
     }
     assert sum(r.split == "train" for r in rows) == 8 * 5  # 4 s clips, 0.5 s hop: starts 0, 0.5, ..., 2
     assert sum(r.split == "test" and r.kind == "mechanical" for r in rows) == 5 * 2  # 2 s hop: starts 0, 2
-    first = data.path / manifest["episodes"][0]["episode_id"]
+    first = data.path / manifest.episodes[0].episode_id
     assert sorted(p.name for p in first.iterdir()) == ["audio.flac", "events.json", "imu.npz", "meta.json"]
     episode = read_episode(first)
     assert episode.source == "import" and episode.modalities == ("audio",)
@@ -258,8 +260,9 @@ def test_dcase_flat_layout(tmp_path: Path) -> None:
             sf.write(wav, _machine(rng, 2.5, 16000, "anomaly" in name), 16000)
     out = import_dataset("mimii", tmp_path / "dev", tmp_path / "ds", TINY, progress=False)
     data = open_dataset(out)
-    assert data.manifest["import"]["units"] == {"0": "ToyCar/id_01", "1": "valve/section_00"}
-    by_name = {e["recording"]: (e["split"], e["category"], e["unit_id"]) for e in data.manifest["episodes"]}
+    assert data.manifest.imported is not None
+    assert data.manifest.imported.facts["units"] == {"0": "ToyCar/id_01", "1": "valve/section_00"}
+    by_name = {e.recording: (e.spec.split, e.spec.category, e.spec.unit_id) for e in data.manifest.episodes}
     assert by_name["ToyCar/train/normal_id_01_00000002"] == ("train", "nominal", 0)
     assert by_name["ToyCar/test/normal_id_01_00000000"] == ("test", "nominal", 0)
     assert by_name["ToyCar/test/anomaly_id_01_00000001"] == ("test", "fault", 0)
@@ -285,9 +288,9 @@ def test_two_imports_of_different_recordings_are_a_dev_eval_pair(mimii: Path, tm
 def _reimported_with_other_audio(mimii: Path, tmp_path: Path) -> Dataset:
     """The MIMII fixture's dataset with every audio checksum changed (as if recorded again)."""
     data = open_dataset(mimii, verify=False)
-    episodes = [{**e, "files": {**e["files"], "audio.flac": f"{i:064d}"}}
-                for i, e in enumerate(data.manifest["episodes"])]  # fmt: skip
-    return Dataset(data.path, {**data.manifest, "episodes": episodes}, data.windows)
+    episodes = tuple(replace(e, files={**e.files, "audio.flac": f"{i:064d}"})
+                     for i, e in enumerate(data.manifest.episodes))  # fmt: skip
+    return Dataset(data.path, replace(data.manifest, episodes=episodes), data.windows)
 
 
 # ---------------------------------------------------------------------------------------------- folder
@@ -295,16 +298,16 @@ def _reimported_with_other_audio(mimii: Path, tmp_path: Path) -> Dataset:
 
 def test_folder_import_resamples_audio_and_imu_and_labels_windows(folder: Path) -> None:
     data = open_dataset(folder)
-    assert data.manifest["modalities"] == ["audio", "imu"]
-    by_name = {e["recording"]: e for e in data.manifest["episodes"]}
-    assert {n: (e["split"], e["category"]) for n, e in by_name.items()} == {
+    assert data.manifest.modalities == ("audio", "imu")
+    by_name = {e.recording: e.spec for e in data.manifest.episodes}
+    assert {n: (e.split, e.category) for n, e in by_name.items()} == {
         "rec_a": ("train", "nominal"),  # two nominal recordings, test fraction 0.5: the last one is test
         "rec_b": ("test", "collision"),
         "day2/rec_c": ("test", "fault"),
         "rec_d": ("test", "nominal"),
     }
     labels = {(r.episode, r.start_s): (r.kind, r.sub_kind) for r in data.windows}
-    b, c = by_name["rec_b"]["episode_id"], by_name["day2/rec_c"]["episode_id"]
+    b, c = by_name["rec_b"].episode_id, by_name["day2/rec_c"].episode_id
     assert [labels[(b, s)] for s in (0.0, 2.0, 4.0)] == [
         ("normal", "none"),
         ("collision", "wall"),
@@ -312,7 +315,7 @@ def test_folder_import_resamples_audio_and_imu_and_labels_windows(folder: Path) 
     ]
     fault = ("mechanical", "bearing")
     assert [labels[(c, s)] for s in (0.0, 2.0, 4.0)] == [("normal", "none"), fault, fault]
-    episode = read_episode(data.path / by_name["rec_a"]["episode_id"])
+    episode = read_episode(data.path / by_name["rec_a"].episode_id)
     assert episode.modalities == ("audio", "imu")
     # 48 kHz -> 44.1 kHz: the left channel is still the 440 Hz sine (away from the filter's edges).
     n = episode.audio.shape[0]
@@ -328,10 +331,11 @@ def test_folder_import_resamples_audio_and_imu_and_labels_windows(folder: Path) 
     inner = (ti > 1.5) & (ti < 4.5)
     expected_vz = -np.cos(2 * np.pi * 2.0 * ti) / (2 * np.pi * 2.0)
     assert np.max(np.abs(episode.imu_vel_z[inner] - expected_vz[inner])) < 0.05 * np.max(np.abs(expected_vz))
-    meta = json.loads((data.path / by_name["rec_a"]["episode_id"] / "meta.json").read_text())
+    meta = json.loads((data.path / by_name["rec_a"].episode_id / "meta.json").read_text())
     assert meta["recording"]["audio_rate"] == 48000 and meta["recording"]["vel_z_estimated_from_az"] is True
     mono = read_episode(data.path / c)
     assert np.array_equal(mono.audio[:, 0], mono.audio[:, 1])  # mono FLAC duplicated into both channels
+    assert read_events(data.path / c).anomalies == (AnomalySpan(2.0, 6.0, "mechanical", "bearing"),)
     events = json.loads((data.path / c / "events.json").read_text())
     assert events["anomalies"] == [{"onset": 2.0, "end": 6.0, "kind": "mechanical", "sub_kind": "bearing"}]
 
@@ -344,7 +348,7 @@ def test_folder_import_through_the_cli_with_a_split_file(folder_source: Path, tm
     assert main(["import", str(folder_source), "--layout", "folder", "--out", str(out), "--labels", labels,
                  "--imu-columns", IMU_COLUMNS, "--time-unit", "ms", "--split-file", str(splits),
                  "--imu-rate", "400", "--scale", "smoke", "--no-progress"]) == 0  # fmt: skip
-    split_of = {e["recording"]: e["split"] for e in open_dataset(out).manifest["episodes"]}
+    split_of = {e.recording: e.spec.split for e in open_dataset(out).manifest.episodes}
     assert split_of == {"rec_a": "train", "rec_b": "test", "day2/rec_c": "test", "rec_d": "val"}
 
 
@@ -378,8 +382,8 @@ def test_viz_shows_what_an_imported_episode_has(folder: Path, mimii: Path, tmp_p
     seen = _entities(rrd)
     assert {"/signals/audio/left", "/truth/label", "/detector/score", "/events"} <= seen
     assert not any(e.startswith(("/signals/imu", "/world", "/signals/wheels")) for e in seen)
-    collision = next(e["episode_id"] for e in open_dataset(folder, verify=False).manifest["episodes"]
-                     if e["category"] == "collision")  # fmt: skip
+    collision = next(e.episode_id for e in open_dataset(folder, verify=False).manifest.episodes
+                     if e.spec.category == "collision")  # fmt: skip
     seen = _entities(log_episode(folder, collision, save=tmp_path / "folder.rrd"))  # type: ignore[arg-type]
     assert {"/signals/imu/vel_z", "/signals/imu/acc", "/events"} <= seen
     imu_model = train_method(
@@ -395,12 +399,12 @@ def test_viz_shows_what_an_imported_episode_has(folder: Path, mimii: Path, tmp_p
 
 def test_windows_import_gives_the_windows_back(windows: Path, windows_source: Path) -> None:
     data = open_dataset(windows)
-    assert data.manifest["modalities"] == ["audio", "imu"]
-    episodes = data.manifest["episodes"]
-    assert sum(e["split"] in ("train", "val") for e in episodes) == 6  # one episode per window
-    assert sum(e["split"] == "val" for e in episodes) == 1
-    abnormal = [e for e in episodes if e["category"] != "nominal"]
-    assert sorted(e["recording"] for e in abnormal) == ["abnormal/sequence-7", "abnormal/sequence-9"]
+    assert data.manifest.modalities == ("audio", "imu")
+    episodes = data.manifest.episodes
+    assert sum(e.spec.split in ("train", "val") for e in episodes) == 6  # one episode per window
+    assert sum(e.spec.split == "val" for e in episodes) == 1
+    abnormal = [e for e in episodes if e.spec.category != "nominal"]
+    assert sorted(str(e.recording) for e in abnormal) == ["abnormal/sequence-7", "abnormal/sequence-9"]
     test, rows = data.load_windows("test")
     assert [(r.kind, r.sub_kind) for r in rows if r.kind != "normal"] == [("collision", "door")] * 2 + [
         ("mechanical", "bearing")
@@ -425,11 +429,28 @@ def test_audio_only_windows_and_other_rates(tmp_path: Path) -> None:
         np.savez(tmp_path / f"{group}.npz", audio=audio)
     out = import_dataset("windows", tmp_path, tmp_path.parent / "w-ds", TINY, WindowsConfig(audio_rate=16000))
     data = open_dataset(out)
-    assert data.manifest["modalities"] == ["audio"]
+    assert data.manifest.modalities == ("audio",)
     train, _ = data.load_windows("train")
     assert train.audio.shape[1:] == (AUDIO_LEN, 2) and not np.any(train.imu)
     amplitude = np.abs(np.fft.rfft(train.audio[0, :, 0] * np.hanning(AUDIO_LEN)))
     assert abs(np.fft.rfftfreq(AUDIO_LEN, 1 / 4410)[np.argmax(amplitude)] - 700) < 1  # pitch kept
+
+
+@pytest.mark.parametrize("layout", ["mimii", "folder", "windows"])
+def test_an_imported_manifest_round_trips_byte_for_byte(
+    layout: str, request: pytest.FixtureRequest, tmp_path: Path
+) -> None:
+    dataset: Path = request.getfixturevalue(layout)
+    text = (dataset / "manifest.json").read_text()
+    manifest = Manifest.load(dataset)
+    assert manifest.source == "import" and manifest.imported is not None
+    assert manifest.imported.layout == layout and manifest.imported.options
+    assert manifest.to_dict() == json.loads(text)
+    assert manifest.save(tmp_path).read_text() == text
+    for episode_id in open_dataset(dataset, verify=False).episode_ids:
+        events = read_events(dataset / episode_id)
+        assert events.contacts == events.transients == events.faults == () and events.anomalies is not None
+        assert events.to_dict() == json.loads((dataset / episode_id / "events.json").read_text())
 
 
 # ----------------------------------------------------------------------------------------- bad input
@@ -474,7 +495,7 @@ def test_unequal_lengths_are_refused_and_nothing_is_left(tmp_path: Path) -> None
     assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out*"))
     assert _folder_import(src, tmp_path / "out", max_length_mismatch_s=1.5).is_dir()  # within the tolerance
     audio_only = open_dataset(_folder_import(src, tmp_path / "audio-only", no_imu=True))
-    assert audio_only.manifest["modalities"] == ["audio"]
+    assert audio_only.manifest.modalities == ("audio",)
 
 
 def test_rates_that_do_not_match(tmp_path: Path, mimii_source: Path) -> None:

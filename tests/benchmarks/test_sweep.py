@@ -76,12 +76,12 @@ def test_a_two_point_sweep_writes_tables_and_plots_with_intervals(sweep: tuple[P
         )
         assert run["dataset_sha256"] == dataset.fingerprint
     faults = [
-        e
+        e.spec
         for p in doc["points"]
-        for e in open_dataset(out / p["runs"][0]["folder"] / "dataset", verify=False).manifest["episodes"]
-        if e["category"] == "fault"
+        for e in open_dataset(out / p["runs"][0]["folder"] / "dataset", verify=False).manifest.episodes
+        if e.spec.category == "fault"
     ]
-    assert {tuple(e["severity"]) for e in faults} == {(0.3, 0.3), (1.0, 1.0)}
+    assert {e.severity for e in faults} == {(0.3, 0.3), (1.0, 1.0)}
     text = (out / "sweep.md").read_text()
     assert "| severity | dataset seed | gaussian-early | audio-rms |" in text
     for key in ("auc", "auc_collision", "auc_mechanical"):

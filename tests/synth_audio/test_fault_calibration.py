@@ -11,8 +11,7 @@ import pytest
 from audio_trace_kit import make_trace
 from fault_calibration_kit import audio_level_db, imu_ratio, trace
 
-from sim.faults import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, IMBALANCE_ME
-from sim.trace import FaultRecord
+from sim.trace import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, IMBALANCE_ME, FaultRecord
 from sim.vocab import FAULT_KINDS
 from synth_audio import AudioConfig, render
 from synth_audio.drive import build_drive

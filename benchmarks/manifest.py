@@ -1,0 +1,366 @@
+"""`manifest.json`, a dataset folder's index, as typed records; the only code that reads or writes it.
+
+A dataset folder (`benchmarks.dataset`) holds one folder per episode, `windows.csv` and `manifest.json`: the
+format version, the preset, the seed, the software versions, the nominal windows left out, every episode's
+plan with the sha256 of each of its files (`ManifestEpisode`), and the window table's sha256 and count
+(`ManifestWindows`). A dataset imported from recordings also records `"source": "import"`, the `modalities`
+its recordings carry and an `import` section (`ManifestImport`).
+
+`Manifest.load(folder)` reads and checks the file: a missing, ill-typed or unknown field is a `DatasetError`
+naming the file and the field, and a format version this software does not read is refused by name.
+`Manifest.save(folder)` writes it atomically. `Manifest.to_dict` gives back exactly the document that
+`Manifest.from_dict` read for every manifest this software writes, so a preset and seed give the same
+`manifest.json` bytes as before the manifest was typed. A manifest of format 2 reads with the fields added
+since at their defaults (the preset's and the episodes' speed factors, the preset's floors and environments),
+and a training budget of the former names (`LEGACY_SCALES`) reads as today's name.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from benchmarks.episode import ALL_MODALITIES, IMPORTED, SIMULATED
+from benchmarks.errors import InputNotFoundError, UserError
+from benchmarks.json_records import plain, read_field, read_json, read_record, read_value, write_json
+from benchmarks.presets import Preset
+from sim.random_scenarios import ScenarioOptions
+
+MANIFEST_FILE = "manifest.json"
+"""The dataset folder's index."""
+
+DATASET_FORMAT_VERSION = 3
+"""Version of the dataset layout (manifest, window table, episode folders).
+
+2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
+training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal_test_duration_s`).
+3: episodes of format 2 (`benchmarks.episode`: 16-bit dithered audio, float32 trace signals); same manifest.
+"""
+READABLE_DATASET_FORMATS: tuple[int, ...] = (2, 3)
+"""Dataset format versions `Manifest.load` reads (episode folders of either episode format)."""
+
+LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}
+"""Training budgets of manifests written when budgets shared the dataset presets' names."""
+
+
+class DatasetError(UserError):
+    """A dataset folder is incomplete, corrupt or of another format; the message names the file."""
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One planned episode: enough to simulate and render it in any process (`benchmarks.dataset`
+    plans it; the manifest records it)."""
+
+    episode_id: str
+    """Folder name."""
+    category: str
+    """`nominal`, `collision` or `fault`."""
+    split: str
+    """`train`, `val` or `test`."""
+    seed: int
+    """Seed of scenario and audio."""
+    unit_id: int
+    """Robot unit."""
+    snr_db: float
+    """Mix SNR, dB (drawn uniformly from the preset's `snr_db` range)."""
+    duration_s: float
+    """Length, s."""
+    environment: str | None
+    """`indoor`, `outdoor` or None (drawn by the scenario sampler)."""
+    obstacle_kind: str | None
+    """Obstacle for a collision episode."""
+    fault_kind: str | None
+    """Fault for a fault episode."""
+    wheel: int | None
+    """Faulty wheel for a fault episode."""
+    severity: tuple[float, float]
+    """Fault severity range."""
+    transient_density: float
+    """Benign transient density multiplier."""
+    surface: str | None = None
+    """Floor surface (None: drawn by the scenario sampler)."""
+    drive_speed_scale: float = 1.0
+    """Factor on the cruise speeds (`sim.random_scenarios.scale_speeds`)."""
+    approach_speed_scale: float = 1.0
+    """Factor on the speeds of the legs driven at an obstacle."""
+
+    def scenario_options(self) -> ScenarioOptions:
+        """What `sim.draw_scenario` draws the episode's scenario with (before `scale_speeds`)."""
+        return ScenarioOptions(
+            duration=self.duration_s,
+            environment=self.environment,
+            obstacle_kind=self.obstacle_kind,
+            fault_kind=self.fault_kind,
+            wheel=self.wheel,
+            severity=self.severity,
+            unit_id=self.unit_id,
+            transient_density=self.transient_density,
+            surface=self.surface,
+        )
+
+
+@dataclass(frozen=True)
+class DroppedWindow:
+    """A window of a nominal episode left out because something anomalous happened in it."""
+
+    episode: str
+    """Episode folder name."""
+    start_s: float
+    """Window start, s."""
+    kind: str
+    """What happened (`collision` or `mechanical`)."""
+    sub_kind: str
+    """Obstacle or fault kind."""
+
+
+@dataclass(frozen=True)
+class ManifestWindows:
+    """The manifest's `windows` entry: the window table's file, checksum and row count."""
+
+    file: str
+    """File name in the dataset folder (`windows.csv`)."""
+    sha256: str
+    """Hex sha256 of the file."""
+    count: int
+    """Windows (rows) in it."""
+
+
+@dataclass(frozen=True)
+class ManifestEpisode:
+    """One entry of the manifest's `episodes`: the episode's plan and the sha256 of each of its files.
+
+    In the file the entry is the plan's fields, `files` and (an import's) `recording`, side by side.
+    """
+
+    spec: EpisodeSpec
+    """The plan it was simulated and rendered from (an import's: split, unit and length; `snr_db` NaN)."""
+    files: dict[str, str]
+    """File name -> hex sha256, for every file of the episode folder."""
+    recording: str | None = None
+    """An imported episode's recording name; None for a generated one."""
+
+    @property
+    def episode_id(self) -> str:
+        """Folder name."""
+        return self.spec.episode_id
+
+    def to_dict(self) -> dict[str, Any]:
+        """The entry as it is written (an SNR that is not known, NaN, as null: JSON has no NaN)."""
+        doc: dict[str, Any] = plain(self.spec)
+        if math.isnan(self.spec.snr_db):
+            doc["snr_db"] = None
+        if self.recording is not None:
+            doc["recording"] = self.recording
+        doc["files"] = dict(self.files)
+        return doc
+
+    @classmethod
+    def from_dict(cls, doc: object, where: str) -> ManifestEpisode:
+        """Read an entry (`where`: the file and the entry, for messages)."""
+        if not isinstance(doc, dict):
+            raise DatasetError(f"{where}: expected a JSON object")
+        plan = {k: v for k, v in doc.items() if k not in ("files", "recording")}
+        if "snr_db" in plan and plan["snr_db"] is None:
+            plan["snr_db"] = math.nan  # an import's: not known
+        return cls(
+            spec=read_record(EpisodeSpec, plan, where, DatasetError),
+            files=read_field(doc, "files", dict[str, str], where, DatasetError),
+            recording=read_value(
+                doc.get("recording"), str | None, f"{where}: field 'recording'", DatasetError
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class ManifestImport:
+    """The manifest's `import` section: where an imported dataset's recordings came from."""
+
+    layout: str
+    """Source layout (`folder`, `mimii`, `windows`)."""
+    source: str
+    """The source folder, resolved."""
+    options: dict[str, Any]
+    """The import options (`benchmarks.importers.config`), as given."""
+    recordings: int
+    """Recordings found in the source."""
+    facts: dict[str, Any] = field(default_factory=dict)
+    """The layout's own facts, side by side with the fields above in the file: `units` (mimii), `labels`,
+    `split_file`, `imu` (folder), `window_slot_s`, `audio_rate`, `imu_rate` (windows)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The section as it is written."""
+        return {**self.facts, "layout": self.layout, "source": self.source, "options": self.options,
+                "recordings": self.recordings}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, doc: object, where: str) -> ManifestImport:
+        """Read the section (`where`: the file and the section, for messages)."""
+        if not isinstance(doc, dict):
+            raise DatasetError(f"{where}: expected a JSON object")
+        own = ("layout", "source", "options", "recordings")
+        section = read_record(cls, {k: v for k, v in doc.items() if k in own}, where, DatasetError)
+        return cls(section.layout, section.source, section.options, section.recordings,
+                   {k: v for k, v in doc.items() if k not in own})  # fmt: skip
+
+
+_FIELDS: tuple[str, ...] = (
+    "format_version",
+    "preset",
+    "seed",
+    "software",
+    "dropped_nominal_windows",
+    "episodes",
+    "windows",
+    "source",
+    "modalities",
+    "import",
+)
+"""Top-level keys of `manifest.json` (the last three in an imported dataset's only)."""
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """A dataset's `manifest.json`, typed."""
+
+    format_version: int
+    """Dataset format version (`DATASET_FORMAT_VERSION` when written by this software)."""
+    preset: Preset
+    """The preset it was generated with (an import's: counts and hops of its data)."""
+    seed: int
+    """Dataset seed (0 for an import, which has none)."""
+    software: dict[str, str]
+    """Package -> version, of the packages that shape the data (`benchmarks.episode.software_versions`)."""
+    dropped_nominal_windows: tuple[DroppedWindow, ...]
+    """Windows of nominal episodes left out because something anomalous happened in them."""
+    episodes: tuple[ManifestEpisode, ...]
+    """Every episode, in plan order (an episode's index here seeds its robustness draws)."""
+    windows: ManifestWindows
+    """The window table."""
+    imported: ManifestImport | None = None
+    """Where an imported dataset came from; None for a generated one."""
+    modalities: tuple[str, ...] = ALL_MODALITIES
+    """The sensors the dataset carries (a generated one: every one)."""
+
+    def __post_init__(self) -> None:
+        """Refuse a generated manifest that claims fewer sensors, and sensors that do not exist."""
+        unknown = [m for m in self.modalities if m not in ALL_MODALITIES]
+        if unknown or not self.modalities:
+            raise ValueError(
+                f"field 'modalities': {list(self.modalities)}; allowed: a non-empty list of "
+                f"{', '.join(ALL_MODALITIES)}"
+            )
+        if self.imported is None and self.modalities != ALL_MODALITIES:
+            raise ValueError(
+                f"field 'modalities': {list(self.modalities)} in a generated dataset, which carries every "
+                "sensor; allowed: only with 'source': 'import'"
+            )
+
+    @property
+    def source(self) -> str:
+        """`simulate` (generated) or `import` (recordings)."""
+        return SIMULATED if self.imported is None else IMPORTED
+
+    def to_dict(self) -> dict[str, Any]:
+        """The document `save` writes (JSON values only)."""
+        doc: dict[str, Any] = {
+            "format_version": self.format_version,
+            "preset": plain(self.preset),
+            "seed": self.seed,
+            "software": dict(self.software),
+            "dropped_nominal_windows": plain(self.dropped_nominal_windows),
+            "episodes": [e.to_dict() for e in self.episodes],
+            "windows": plain(self.windows),
+        }
+        if self.imported is not None:
+            doc["source"] = IMPORTED
+            doc["modalities"] = list(self.modalities)
+            doc["import"] = self.imported.to_dict()
+        return doc
+
+    @classmethod
+    def from_dict(cls, doc: object, file: Path | str = MANIFEST_FILE) -> Manifest:
+        """Read and check a manifest document; `file` names it in a `DatasetError`."""
+        where = str(file)
+        if not isinstance(doc, dict):
+            raise DatasetError(f"{where}: expected a JSON object")
+        version = doc.get("format_version")
+        if (
+            isinstance(version, bool)
+            or not isinstance(version, int)
+            or version not in READABLE_DATASET_FORMATS
+        ):
+            readable = " or ".join(str(v) for v in READABLE_DATASET_FORMATS)
+            raise DatasetError(
+                f"{where}: dataset format_version {version}, this software reads format_version "
+                f"{readable}; generate the dataset again with `msvdd-bench generate`"
+            )
+        unknown = sorted(set(doc) - set(_FIELDS))
+        if unknown:
+            raise DatasetError(f"{where}: unknown field {unknown[0]!r}")
+        source = read_value(doc.get("source", SIMULATED), str, f"{where}: field 'source'", DatasetError)
+        if source not in (SIMULATED, IMPORTED):
+            raise DatasetError(f"{where}: field 'source': {source!r}; allowed: {SIMULATED}, {IMPORTED}")
+        if (source == IMPORTED) != ("import" in doc):
+            raise DatasetError(f"{where}: field 'import' is required with 'source': 'import' and only there")
+        preset = read_field(doc, "preset", dict[str, Any], where, DatasetError)
+        scale = preset.get("method_scale")
+        if isinstance(scale, str) and scale in LEGACY_SCALES:  # written before budgets were named apart
+            preset = {**preset, "method_scale": LEGACY_SCALES[scale]}
+        entries = read_field(doc, "episodes", tuple[Any, ...], where, DatasetError)
+        episodes = tuple(ManifestEpisode.from_dict(e, _entry(where, i, e)) for i, e in enumerate(entries))
+        imported = ManifestImport.from_dict(doc["import"], f"{where}: import") if "import" in doc else None
+        modalities = doc.get("modalities", list(ALL_MODALITIES))
+        try:
+            return cls(
+                format_version=version,
+                preset=read_record(Preset, preset, f"{where}: preset", DatasetError),
+                seed=read_field(doc, "seed", int, where, DatasetError),
+                software=read_field(doc, "software", dict[str, str], where, DatasetError),
+                dropped_nominal_windows=read_field(
+                    doc, "dropped_nominal_windows", tuple[DroppedWindow, ...], where, DatasetError
+                ),
+                episodes=episodes,
+                windows=read_field(doc, "windows", ManifestWindows, where, DatasetError),
+                imported=imported,
+                modalities=read_value(
+                    modalities, tuple[str, ...], f"{where}: field 'modalities'", DatasetError
+                ),
+            )
+        except DatasetError:
+            raise
+        except ValueError as exc:  # the manifest's own checks (`__post_init__`)
+            raise DatasetError(f"{where}: {exc}") from exc
+
+    @classmethod
+    def load(cls, folder: Path) -> Manifest:
+        """Read the manifest of the dataset folder `folder`.
+
+        Raises:
+            InputNotFoundError: `folder` has no manifest (it is not a dataset).
+            DatasetError: the manifest is not JSON, or a field is missing, ill-typed or unknown, or its format
+                version is not one this software reads (the message names the file and the field).
+        """
+        path = Path(folder) / MANIFEST_FILE
+        if not path.is_file():
+            raise InputNotFoundError(f"not a dataset (no {MANIFEST_FILE}): {folder}")
+        return cls.from_dict(read_json(path, DatasetError), path)
+
+    def save(self, folder: Path) -> Path:
+        """Write `manifest.json` into the dataset folder `folder` (atomically); returns its path."""
+        path = Path(folder) / MANIFEST_FILE
+        write_json(path, self.to_dict())
+        return path
+
+
+def _entry(where: str, index: int, doc: object) -> str:
+    """How messages name the episode entry `doc` at `index`: its position and, when it has one, its id."""
+    name = doc.get("episode_id") if isinstance(doc, dict) else None
+    return f"{where}: episodes[{index}]" + (f" ({name})" if isinstance(name, str) else "")
+
+
+def is_dataset_folder(folder: Path) -> bool:
+    """Whether `folder` holds a dataset manifest."""
+    return (Path(folder) / MANIFEST_FILE).is_file()

@@ -77,7 +77,7 @@ class Engine:
         self._xfrc0 = m.nu + m.nv
         self._mocap0 = m.nu + m.nv + 6 * m.nbody
         self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
-        self._states = np.zeros((1, CONTROL_STEPS, self.nstate))
+        self._wheel_control = self._control[0, :, : m.nu]
         self._runner = mj_rollout.Rollout(nthread=0)
         self._models = [m]
         self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
@@ -90,6 +90,9 @@ class Engine:
         self.half_track = 0.5 * track
         names = info.wheel_names
         self.side = np.array([-1.0 if ("left" in n) else 1.0 for n in names])
+        self._wheel_sides = [
+            (bool(side < 0), r) for side, r in zip(self.side, self.radius.tolist(), strict=True)
+        ]
         self.forcings: list[FaultForcing] = make_forcings(scenario.faults, info, scenario.seed)
         self.ped_index = np.array([i for i, ob in enumerate(scenario.obstacles) if ob.kind == "pedestrian"])
         self.ped_mocap = (
@@ -97,6 +100,7 @@ class Engine:
             if len(self.ped_index)
             else np.zeros(0, np.int64)
         )
+        self._has_peds = len(self.ped_index) > 0
         self.state = np.zeros(self.nstate)
         self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
@@ -122,12 +126,18 @@ class Engine:
 
     def wheel_commands(self, v: float, w: float) -> np.ndarray:
         """(W,) wheel speed commands (rad/s) for body speed v (m/s) and yaw rate w (rad/s)."""
-        cmd = (v + self.side * w * self.half_track) / self.radius
+        return np.array(self.wheel_command_list(v, w))
+
+    def wheel_command_list(self, v: float, w: float) -> list[float]:
+        """`wheel_commands` as a list of floats (the same values; `step` takes either, and the list is
+        cheaper to make once per control period)."""
+        turn = w * self.half_track  # (side x w) x half_track: -turn on the left, +turn on the right, exactly
+        cmd = [(v - turn if left else v + turn) / r for left, r in self._wheel_sides]
         for forcing in self.forcings:
             cmd[forcing.fault.wheel] *= forcing.speed_factor(self.time)
         return cmd
 
-    def step(self, wheel_cmd: np.ndarray, out: np.ndarray) -> None:
+    def step(self, wheel_cmd: np.ndarray | list[float], out: np.ndarray) -> None:
         """Run one period of `len(out)` steps with the given wheel commands; sensordata goes to `out`.
 
         Args:
@@ -135,23 +145,27 @@ class Engine:
             out: (k, nsensordata) C-contiguous array receiving the sensors after every step.
         """
         k = out.shape[0]
-        m = self.model
-        control = self._control if k == CONTROL_STEPS else self._control[:, :k]
-        control[0, :, : m.nu] = wheel_cmd
+        if k == CONTROL_STEPS:
+            control = self._control
+            self._wheel_control[:] = wheel_cmd
+        else:
+            control = self._control[:, :k]
+            self._wheel_control[:k] = wheel_cmd
         if self.forcings:
             self._apply_faults(control[0], self.time + self.dt * np.arange(k))
-        if len(self.ped_index):
+        if self._has_peds:
             i0 = round(self.time / self.dt)
             self._ensure_ped_track(i0 + k)
             self._ped_view(control[0])[:, self.ped_mocap, :] = self._ped_track[i0 : i0 + k]
-        states = self._states if k == CONTROL_STEPS else self._states[:, :k]
+        # The rollout starts from `state` with a zero solver warm start (as every period has), and leaves
+        # the period's last step in `data`, whose full state is the next period's start.
         self._runner.rollout(
             self._models, self._datas, self.state[None], control, control_spec=_CONTROL_SPEC,
-            skip_checks=True, nstep=k, state=states, sensordata=out[None],
+            skip_checks=True, nstep=k, sensordata=out[None],
         )  # fmt: skip
-        self.state[:] = states[0, k - 1]
+        mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
         self.sensordata = out[k - 1]
-        self.time = float(self.state[0])
+        self.time = self.data.time  # = state[0]
 
     def _ped_view(self, control: np.ndarray) -> np.ndarray:
         k = control.shape[0]

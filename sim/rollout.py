@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from sim.driving import RouteController
-from sim.engine import CONTROL_STEPS, Engine, yaw_of
-from sim.events import contact_events, labels, transient_events
+from sim.engine import CONTROL_STEPS, Engine
+from sim.events import MERGE_GAP, ObstacleVelocity, contact_events, labels, transient_events
 from sim.faults import fault_record
 from sim.imu import imu_samples
 from sim.scenario import Scenario
 from sim.trace import Trace
-from sim.world import World, build_world
+from sim.world import SensorSlices, World, build_world
 
 
 def simulate(scenario: Scenario, world: World | None = None) -> Trace:
@@ -34,65 +36,182 @@ def steps_for(scenario: Scenario, dt: float) -> int:
     return samples * per_sample
 
 
-def run_route(engine: Engine, scenario: Scenario) -> np.ndarray:
-    """Drive the scenario's route; returns (n, nsensordata) sensors after every physics step."""
+RECORD_PERIODS = 32
+"""Control periods whose sensors the recording buffer holds (512 steps, about 0.5 MB: it stays in the CPU's
+cache) before they are moved to the episode's per-signal arrays (more if a gap that merges contacts into one
+event, `sim.events.MERGE_GAP`, were longer: the sparse contact arrays rely on it, see `Recording`)."""
+
+
+class Recording:
+    """The physics-rate sensors of an episode, as `run_route` records them.
+
+    The rollout writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
+    `move` then copies the buffer to one C-contiguous (n, width) array per signal (`cols`: what
+    `assemble_trace` takes apart), so there is no (n, nsensordata) array and no strided copy of it at the
+    end. The contact sensors (`contact`: per obstacle or wheel, found count, net force, centroid) are kept
+    densely for the found counts only; force and centroid are copied for the blocks (the buffer's
+    length) in which a contact was found and stay 0 elsewhere. `contact_events` and `transient_events`
+    read them only inside runs of found contacts (gaps shorter than `MERGE_GAP` merged), which never reach
+    a block without one, so the events are the same as from the full arrays.
+    """
+
+    def __init__(self, n: int, nsensordata: int, sl: SensorSlices, w: int, k: int, periods: int) -> None:
+        self.n = n
+        """Physics steps."""
+        groups = (
+            (sl.wheel_angle, w),
+            (sl.wheel_speed, w),
+            (sl.wheel_torque, w),
+            (sl.base_pos, 3),
+            (sl.base_quat, 4),
+            (sl.base_linvel, 3),
+            (sl.base_angvel, 3),
+            (sl.acc, 3),
+            (sl.vel, 3),
+            (sl.mic, 6),
+            (sl.obstacle_pos, 3 * k),
+        )
+        contacts = ((sl.obstacle_contact, k), (sl.transient_contact, w))
+        spans = sorted([*groups, *((start, 7 * count) for start, count in contacts)])
+        ends = [0] + [start + width for start, width in spans]
+        if [start for start, _ in spans] != ends[:-1] or ends[-1] != nsensordata:
+            raise RuntimeError(f"the recorded signals {spans} do not tile the {nsensordata} sensor values")
+        self.periods = periods
+        """Control periods the buffer holds."""
+        self.buffer = np.empty((periods * CONTROL_STEPS, nsensordata))
+        """Where the rollout writes: (periods x CONTROL_STEPS, nsensordata)."""
+        self.done = 0
+        """Steps moved from `buffer` to the arrays."""
+        self._signals = {start: np.empty((n, width)) for start, width in groups}
+        self._contacts = {
+            start: (np.empty((n, count)), np.zeros((n, 7 * count))) for start, count in contacts
+        }
+        buffer = self.buffer
+        self._moves = [(self._signals[start], buffer[:, start : start + width]) for start, width in groups]
+        self._contact_moves = [
+            (found, values, buffer[:, start : start + 7 * count : 7], buffer[:, start : start + 7 * count])
+            for (start, count), (found, values) in zip(contacts, self._contacts.values(), strict=True)
+        ]
+
+    def move(self, stop: int) -> None:
+        """Copy the buffer's first `stop - done` rows (steps done to stop of the episode) to the arrays."""
+        start, rows = self.done, stop - self.done
+        for array, column in self._moves:
+            array[start:stop] = column[:rows]
+        for found, values, found_column, value_columns in self._contact_moves:
+            block = found[start:stop]
+            block[:] = found_column[:rows]
+            if block.any():  # found counts are whole numbers >= 0
+                values[start:stop] = value_columns[:rows]
+        self.done = stop
+
+    def cols(self, start: int, width: int) -> np.ndarray:
+        """The (n, width) sensors of the signal at sensordata[start] (not a contact sensor)."""
+        array = self._signals[start]
+        if array.shape[1] != width:
+            raise ValueError(f"no recorded signal of width {width} at sensordata[{start}]")
+        return array
+
+    def contact(self, start: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """The `count` contact sensors at sensordata[start]: found counts (n, count) and (n, count, 7) values
+        (found, force, centroid; force and centroid only in blocks with a contact, see the class)."""
+        found, values = self._contacts[start]
+        if found.shape[1] != count:
+            raise ValueError(f"no {count} contact sensors at sensordata[{start}]")
+        return found, values.reshape(self.n, count, 7)
+
+
+def run_route(engine: Engine, scenario: Scenario) -> Recording:
+    """Drive the scenario's route; returns the sensors after every physics step.
+
+    Per control period: the pose from the last step's sensors, the contacts of the period before, the
+    controller's command, and one `mujoco.rollout` of `CONTROL_STEPS` steps into a slot of the recording
+    buffer (the views the next period reads of each slot are made once, not every period).
+    """
     world = engine.world
     sl = world.sensors
     n = steps_for(scenario, engine.dt)
     k_obs = len(world.obstacles)
-    out = np.empty((n, world.model.nsensordata))
-    found_cols = sl.obstacle_contact + 7 * np.arange(k_obs)
+    merge_gap = max(1, round(MERGE_GAP / engine.dt))  # the longest gap inside a contact event, steps
+    periods = max(RECORD_PERIODS, merge_gap // CONTROL_STEPS + 2)  # a block is longer than the gap
+    record = Recording(n, world.model.nsensordata, sl, world.n_wheels, k_obs, periods)
+    pose_at, targets_at, found_at = sl.base_pos, sl.obstacle_pos, sl.obstacle_contact
+    if sl.base_quat != pose_at + 3 or found_at != targets_at + 3 * k_obs:
+        raise RuntimeError("unexpected sensordata layout")
+    found_end = found_at + 7 * k_obs
+    slots = [record.buffer[i * CONTROL_STEPS : (i + 1) * CONTROL_STEPS] for i in range(periods)]
+    slot_found = [out[:, found_at:found_end:7] for out in slots]  # contact counts (steps, K)
+    slot_pose = [out[-1, pose_at : pose_at + 7] for out in slots]  # base position, then orientation
+    slot_targets = [out[-1, targets_at:found_at].reshape(k_obs, 3)[:, :2] for out in slots]
     live = np.zeros(k_obs, dtype=bool)
     live[engine.ped_index.astype(np.int64)] = True
     footprints = np.array([[ob.size[0], ob.size[1], ob.yaw] for ob in world.obstacles]).reshape(k_obs, 3)
     controller = RouteController(
         scenario.route, live_mask=live, footprints=footprints, reach=world.bumper_reach
     )
+    command = controller.command
+    wheel_commands = engine.wheel_command_list
+    step = engine.step
     period = CONTROL_STEPS * engine.dt
-    pos_cols = (sl.obstacle_pos + 3 * np.arange(k_obs)[:, None] + np.arange(2)[None, :]).ravel()
-    prev = 0
-    for start in range(0, n, CONTROL_STEPS):
+    sd = engine.sensordata
+    pose_now = sd[pose_at : pose_at + 7]
+    targets = sd[targets_at:found_at].reshape(k_obs, 3)[:, :2]
+    found: np.ndarray | None = None  # contact counts of the period before
+    for p, start in enumerate(range(0, n, CONTROL_STEPS)):
+        slot = p % periods
+        if slot == 0 and start > 0:  # buffer full: move it to the arrays, start again at its top
+            record.move(start)
+        x, y, _, qw, qx, qy, qz = pose_now.tolist()
+        pose = (x, y, math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz)))  # yaw_of, inlined
+        contact = False
+        if found is not None and found.any():  # contact counts are whole numbers >= 0: any() is any(> 0)
+            contact = True
+            for ob in np.flatnonzero(found.any(axis=0) & live):
+                engine.step_back(int(ob), pose)  # a pedestrian who is bumped steps back and stands
+        v, w = command(engine.time, pose, contact, targets, period)
         k = min(CONTROL_STEPS, n - start)
-        sd = engine.sensordata
-        pose = (
-            float(sd[sl.base_pos]),
-            float(sd[sl.base_pos + 1]),
-            yaw_of(sd[sl.base_quat : sl.base_quat + 4]),
-        )
-        touched = (out[prev:start, found_cols] > 0).any(axis=0) if start > 0 else np.zeros(k_obs, dtype=bool)
-        contact = bool(touched.any())
-        for ob in np.flatnonzero(touched & live):
-            engine.step_back(int(ob), pose)  # a pedestrian who is bumped steps back and stands
-        targets = sd[pos_cols].reshape(k_obs, 2)
-        v, w = controller.command(engine.time, pose, contact, targets, period)
-        engine.step(engine.wheel_commands(v, w), out[start : start + k])
-        prev = start
-    return out
+        step(wheel_commands(v, w), slots[slot] if k == CONTROL_STEPS else slots[slot][:k])
+        found, pose_now, targets = slot_found[slot], slot_pose[slot], slot_targets[slot]
+    record.move(n)
+    return record
 
 
-def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray, dt: float) -> Trace:
-    """Turn recorded sensors into a Trace: IMU with noise, events, fault records and labels."""
+def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray | Recording, dt: float) -> Trace:
+    """Turn recorded sensors into a Trace: IMU with noise, events, fault records and labels.
+
+    Args:
+        sd: (n, nsensordata) sensors after every physics step, or `run_route`'s recording of them.
+    """
     sl = world.sensors
     w = world.n_wheels
     k = len(world.obstacles)
-    n = sd.shape[0]
+    n = sd.n if isinstance(sd, Recording) else sd.shape[0]
     time = dt * np.arange(1, n + 1)
 
     def cols(start: int, width: int) -> np.ndarray:
+        if isinstance(sd, Recording):
+            return sd.cols(start, width)
         return np.ascontiguousarray(sd[:, start : start + width])
+
+    def contact(start: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """Found counts (n, count) and (n, count, 7) values of `count` contact sensors."""
+        if isinstance(sd, Recording):
+            return sd.contact(start, count)
+        values = cols(start, 7 * count).reshape(n, count, 7)
+        return values[:, :, 0], values
 
     base_linvel = cols(sl.base_linvel, 3)
     imu = imu_samples(
         time, cols(sl.acc, 3), cols(sl.base_angvel, 3), cols(sl.vel, 3), scenario.sensors, scenario.seed
     )
     ob_pos = cols(sl.obstacle_pos, 3 * k).reshape(n, k, 3)
-    ob_vel = np.gradient(ob_pos, dt, axis=0) if n > 1 else np.zeros_like(ob_pos)
-    hits = cols(sl.obstacle_contact, 7 * k).reshape(n, k, 7)
+    ob_vel = ObstacleVelocity(ob_pos, dt)  # np.gradient(ob_pos, dt, axis=0), at the rows contact_events reads
+    found, hits = contact(sl.obstacle_contact, k)
     contacts, event_runs = contact_events(
-        hits[:, :, 0], hits[:, :, 1:4], hits[:, :, 4:7], base_linvel, ob_vel, world.obstacles, dt
+        found, hits[:, :, 1:4], hits[:, :, 4:7], base_linvel, ob_vel, world.obstacles, dt
     )
-    bumps = cols(sl.transient_contact, 7 * w).reshape(n, w, 7)
-    transients = transient_events(bumps[:, :, 0], bumps[:, :, 1:4], bumps[:, :, 4:7], scenario, dt)
+    found, bumps = contact(sl.transient_contact, w)
+    transients = transient_events(found, bumps[:, :, 1:4], bumps[:, :, 4:7], scenario, dt)
     info = world.robot.info
     faults = tuple(fault_record(f, info, float(time[-1])) for f in scenario.faults)
     factor = n // len(imu.time)

@@ -543,9 +543,22 @@ def _spectrum_line(s: Spectrum) -> str:
 
 def diagnosis_markdown(d: Diagnosis) -> str:
     """The diagnosis as a markdown report."""
+    sections = [
+        _header_lines(d),
+        _history_lines(d.history),
+        _sigma_lines(d.sigma),
+        _embedding_lines(d.embeddings),
+        _decomposition_lines(d),
+        _encoding_lines(d.encoding),
+    ]
+    return "\n\n".join("\n".join(lines) for lines in sections)
+
+
+def _header_lines(d: Diagnosis) -> list[str]:
+    """Title, the model's configuration and the windows read."""
     c = d.counts
     cfg = d.config
-    lines = [
+    return [
         f"# Diagnosis of `{d.model}` ({d.method})",
         "",
         f"Dataset `{d.dataset}`; s = {cfg['s']}, eps = {cfg['eps']:g}, w = {cfg['w']:g}, "
@@ -556,51 +569,64 @@ def diagnosis_markdown(d: Diagnosis) -> str:
         f"Windows (seeded subsample, seed {c.seed}): train {c.train_used} of {c.train_total}; test "
         + ", ".join(f"{k} {c.test_used[k]} of {c.test_total[k]}" for k in KINDS)
         + " (kinds and sub-kinds kept in proportion).",
-        "",
-        "## 1. Training history",
-        "",
     ]
-    h = d.history
+
+
+def _history_lines(h: HistorySummary | None) -> list[str]:
+    """Section 1: the radius R over training, and the losses."""
+    lines = ["## 1. Training history", ""]
     if h is None:
         lines.append(
             "No training history with a per-epoch R in the model file (saved before histories were kept)."
         )
-    else:
-        lines += [
-            f"{h.epochs} epochs, kept epoch {h.kept_epoch}. R: initial sqrt(s) = {_f(h.radius_initial)}, "
-            f"first {_f(h.radius_first)}, min {_f(h.radius_min)}, max {_f(h.radius_max)}, "
-            f"last {_f(h.radius_last)}, kept {_f(h.radius_kept)}.",
-            f"R collapsed: **{'yes' if h.collapsed else 'no'}** ({h.rule}).",
-            f"Training loss first {_f(h.train_loss[0])}, last {_f(h.train_loss[-1])}"
-            + (
-                f"; validation loss at the kept epoch {_f(h.val_loss[h.kept_epoch])}"
-                if len(h.val_loss) > h.kept_epoch
-                else ""
-            )
-            + "; kept epoch's terms: "
-            + ", ".join(f"{k} {_f(v)}" for k, v in h.terms_kept.items())
-            + ".",
-        ]
-    sig = d.sigma
+        return lines
     lines += [
-        "",
+        f"{h.epochs} epochs, kept epoch {h.kept_epoch}. R: initial sqrt(s) = {_f(h.radius_initial)}, "
+        f"first {_f(h.radius_first)}, min {_f(h.radius_min)}, max {_f(h.radius_max)}, "
+        f"last {_f(h.radius_last)}, kept {_f(h.radius_kept)}.",
+        f"R collapsed: **{'yes' if h.collapsed else 'no'}** ({h.rule}).",
+        f"Training loss first {_f(h.train_loss[0])}, last {_f(h.train_loss[-1])}"
+        + (
+            f"; validation loss at the kept epoch {_f(h.val_loss[h.kept_epoch])}"
+            if len(h.val_loss) > h.kept_epoch
+            else ""
+        )
+        + "; kept epoch's terms: "
+        + ", ".join(f"{k} {_f(v)}" for k, v in h.terms_kept.items())
+        + ".",
+    ]
+    return lines
+
+
+def _sigma_lines(sig: Spectrum) -> list[str]:
+    """Section 2: the eigen-spectrum of Sigma."""
+    return [
         "## 2. Sigma",
         "",
         f"{_spectrum_line(sig)}; {sig.n_ridge_dominated} eigenvalue(s) within {RIDGE_FACTOR:g} x eps "
         "(the ridge eps I dominates there).",
         "Eigenvalues: " + ", ".join(_f(v, 3) for v in sig.eigenvalues) + ".",
-        "",
+    ]
+
+
+def _embedding_lines(e: EmbeddingSummary) -> list[str]:
+    """Section 3: the spread of the embeddings z."""
+    return [
         "## 3. Embeddings z",
         "",
-        f"Training z covariance: {_spectrum_line(d.embeddings.train_spectrum)}; test z covariance: "
-        f"{_spectrum_line(d.embeddings.test_spectrum)}.",
-        f"{d.embeddings.n_collapsed} dimension(s) with training variance < {Z_COLLAPSE_VARIANCE:g} "
-        "(collapsed).",
+        f"Training z covariance: {_spectrum_line(e.train_spectrum)}; test z covariance: "
+        f"{_spectrum_line(e.test_spectrum)}.",
+        f"{e.n_collapsed} dimension(s) with training variance < {Z_COLLAPSE_VARIANCE:g} (collapsed).",
         "Per-dimension variance, train (largest first): "
-        + ", ".join(_f(v, 3) for v in d.embeddings.train_variance)
+        + ", ".join(_f(v, 3) for v in e.train_variance)
         + ".",
-        "Same dimensions, test: " + ", ".join(_f(v, 3) for v in d.embeddings.test_variance) + ".",
-        "",
+        "Same dimensions, test: " + ", ".join(_f(v, 3) for v in e.test_variance) + ".",
+    ]
+
+
+def _decomposition_lines(d: Diagnosis) -> list[str]:
+    """Section 4: the D and Rec terms of the score per group, and the score with other weights w."""
+    lines = [
         "## 4. Score decomposition",
         "",
         f"score = D + {_f(d.rec_weight)} Rec (w mean_D / mean_Rec). AUCs are each group against the "
@@ -627,9 +653,12 @@ def diagnosis_markdown(d: Diagnosis) -> str:
             f"| {_f(x.w)} | {_f(x.auc, 3)} | {_f(x.auc_collision, 3)} | {_f(x.auc_mechanical, 3)} |"
             for x in d.weights
         ]
-    e = d.encoding
-    lines += [
-        "",
+    return lines
+
+
+def _encoding_lines(e: Encoding) -> list[str]:
+    """Section 5: how much of z the covariates explain (the report ends with a newline)."""
+    return [
         "## 5. What z encodes",
         "",
         "Covariates per window: loudness = log RMS of the audio; motion = std of the IMU z-velocity"
@@ -649,7 +678,6 @@ def diagnosis_markdown(d: Diagnosis) -> str:
         + ".",
         "",
     ]
-    return "\n".join(lines)
 
 
 OUTPUT_FILES: tuple[str, ...] = ("diagnosis.json", "diagnosis.md")

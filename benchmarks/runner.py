@@ -7,22 +7,37 @@ import os
 import platform
 import shutil
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks import methods
 from benchmarks.cache import cached_dataset
-from benchmarks.dataset import check_dev, generate, open_dataset
+from benchmarks.dataset import Dataset, check_dev, generate, open_dataset
 from benchmarks.errors import OutputExistsError, UserError, check_seed
 from benchmarks.executor import Executor
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
 from benchmarks.report import RunInfo, write_report
+from msvdd.contract import Windows
 
 DEFAULT_PRESET = "quick"
 """The dataset preset of `run` and `demo` when neither --preset nor --data names one."""
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What a run does, resolved from its arguments."""
+
+    preset: Preset
+    seed: int
+    """The dataset seed."""
+    names: list[str]
+    """The methods, groups expanded."""
+    scale: str
+    train_seeds: list[int]
 
 
 def run_benchmark(
@@ -57,28 +72,11 @@ def run_benchmark(
     Returns `out`.
     """
     out = Path(out)
-    if out.exists():
-        raise OutputExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
-    if data is not None and cache is not None:
-        raise UserError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
-    if preset is not None and (preset_name is not None or data is not None or cache is not None):
-        raise UserError("a preset object excludes a preset name, --data and --cache")
-    if data is not None:
-        preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
-        if preset_name not in preset_names():  # a derived preset (a sweep point's): the manifest's
-            preset = open_dataset(Path(data), verify=False).preset
-    if preset is None:
-        preset = get_preset(preset_name or DEFAULT_PRESET)
-    preset_name = preset.name
-    seed = 0 if seed is None else check_seed(seed)
-    names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
-    for name in names:
-        methods.spec(name)
-    chosen_scale = check_scale(scale or preset.method_scale)
-    train_seeds = seeds if seeds else list(preset.seeds)
+    _check_arguments(out, preset_name=preset_name, data=data, cache=cache, preset=preset)
+    plan = _plan(preset_name, seed, method_names, data, scale, seeds, preset)
     if cache is not None:
         data, reused = cached_dataset(
-            Path(cache), preset_name, seed, workers=workers, progress=progress, executor=executor
+            Path(cache), plan.preset.name, plan.seed, workers=workers, progress=progress, executor=executor
         )
         print(f"{'reusing' if reused else 'generated'} cached dataset {data}", flush=True)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -86,51 +84,122 @@ def run_benchmark(
     try:
         if data is None:
             data_path = generate(
-                preset, seed, tmp / "dataset", workers=workers, progress=progress, executor=executor
+                plan.preset, plan.seed, tmp / "dataset", workers=workers, progress=progress, executor=executor
             )
         else:
             data_path = Path(data)
         # a cache entry was verified just now
         dataset = open_dataset(data_path, verify=cache is None, progress=progress)
-        dev_text = check_dev(open_dataset(Path(dev), verify=False), dataset) if dev is not None else ""
-        train, _ = dataset.load_windows("train", progress=progress)
-        val = dataset.load_windows("val", progress=progress)[0] if dataset.rows("val") else None
-        test = test_windows(dataset, progress=progress)
-        models: list[TrainedModel] = []
-        for name in names:
-            for s in train_seeds:
-                if progress:
-                    print(
-                        f"training {name} (seed {s}, scale {chosen_scale}) on {len(train)} windows",
-                        flush=True,
-                    )
-                folder = tmp / "models" / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
-                models.append(
-                    train_method(
-                        dataset, name, s, chosen_scale, folder, train, val, device=device, progress=progress
-                    )
-                )
-        scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
-        fit_time: dict[str, list[float]] = {}
-        for m in models:
-            fit_time.setdefault(m.method, []).append(m.train_seconds)
-        info = RunInfo(
-            preset=preset_name,
-            dataset_seed=seed,
-            dataset=str(data_path if data is not None else out / "dataset"),
-            command=command,
-            machine=machine_description(),
-            date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
-            train_seconds={k: float(np.mean(v)) for k, v in fit_time.items()},
-            dev=dev_text,
-            dataset_fingerprint=dataset.fingerprint,
-        )
-        write_report(tmp, info, rows, scores, per_method)
+        dataset_text = str(data_path if data is not None else out / "dataset")
+        _train_and_report(tmp, dataset, dataset_text, plan, dev, command, device, progress)
         os.replace(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def _check_arguments(
+    out: Path, *, preset_name: str | None, data: Path | None, cache: Path | None, preset: Preset | None
+) -> None:
+    """Refuse an existing run folder and arguments that exclude each other."""
+    if out.exists():
+        raise OutputExistsError(f"run folder exists already: {out} (remove it or choose another --out)")
+    if data is not None and cache is not None:
+        raise UserError("--data and --cache exclude each other (a dataset folder, or a cache folder)")
+    if preset is not None and (preset_name is not None or data is not None or cache is not None):
+        raise UserError("a preset object excludes a preset name, --data and --cache")
+
+
+def _plan(
+    preset_name: str | None,
+    seed: int | None,
+    method_names: list[str] | None,
+    data: Path | None,
+    scale: str | None,
+    seeds: list[int] | None,
+    preset: Preset | None,
+) -> _Plan:
+    """The preset and dataset seed (the dataset's, with `data`), the methods (checked), scale and seeds."""
+    if data is not None:
+        preset_name, seed = _dataset_identity(Path(data), preset_name, seed)
+        if preset_name not in preset_names():  # a derived preset (a sweep point's): the manifest's
+            preset = open_dataset(Path(data), verify=False).preset
+    if preset is None:
+        preset = get_preset(preset_name or DEFAULT_PRESET)
+    seed = 0 if seed is None else check_seed(seed)
+    names = expand_methods(method_names or list(preset.methods) or ["all"], methods.names())
+    for name in names:
+        methods.spec(name)
+    chosen_scale = check_scale(scale or preset.method_scale)
+    train_seeds = seeds if seeds else list(preset.seeds)
+    return _Plan(preset, seed, names, chosen_scale, train_seeds)
+
+
+def _train_and_report(
+    tmp: Path,
+    dataset: Dataset,
+    dataset_text: str,
+    plan: _Plan,
+    dev: Path | None,
+    command: str,
+    device: str,
+    progress: bool,
+) -> None:
+    """Train every method for every seed on `dataset`, score the test windows and write the report in `tmp`.
+
+    `dataset_text` is the dataset's folder as the report names it.
+    """
+    dev_text = check_dev(open_dataset(Path(dev), verify=False), dataset) if dev is not None else ""
+    train, _ = dataset.load_windows("train", progress=progress)
+    val = dataset.load_windows("val", progress=progress)[0] if dataset.rows("val") else None
+    test = test_windows(dataset, progress=progress)
+    models = _train_models(tmp / "models", dataset, plan, train, val, device, progress)
+    scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
+    info = RunInfo(
+        preset=plan.preset.name,
+        dataset_seed=plan.seed,
+        dataset=dataset_text,
+        command=command,
+        machine=machine_description(),
+        date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
+        train_seconds=_mean_train_seconds(models),
+        dev=dev_text,
+        dataset_fingerprint=dataset.fingerprint,
+    )
+    write_report(tmp, info, rows, scores, per_method)
+
+
+def _train_models(
+    folder: Path,
+    dataset: Dataset,
+    plan: _Plan,
+    train: Windows,
+    val: Windows | None,
+    device: str,
+    progress: bool,
+) -> list[TrainedModel]:
+    """Every method of the plan for every training seed, each saved in its folder under `folder`."""
+    models: list[TrainedModel] = []
+    for name in plan.names:
+        for s in plan.train_seeds:
+            if progress:
+                print(f"training {name} (seed {s}, scale {plan.scale}) on {len(train)} windows", flush=True)
+            model_folder = folder / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
+            models.append(
+                train_method(
+                    dataset, name, s, plan.scale, model_folder, train, val, device=device, progress=progress
+                )
+            )
+    return models
+
+
+def _mean_train_seconds(models: list[TrainedModel]) -> dict[str, float]:
+    """Mean training time of each method over its seeds."""
+    fit_time: dict[str, list[float]] = {}
+    for m in models:
+        fit_time.setdefault(m.method, []).append(m.train_seconds)
+    return {k: float(np.mean(v)) for k, v in fit_time.items()}
 
 
 def _dataset_identity(data: Path, preset_name: str | None, seed: int | None) -> tuple[str, int]:

@@ -257,6 +257,40 @@ def _targets(kinds: np.ndarray, subs: np.ndarray) -> list[tuple[str, np.ndarray]
     return out
 
 
+@dataclass(frozen=True)
+class _Labels:
+    """The labels of the collected test windows, one entry per window, and the targets they define."""
+
+    kinds: np.ndarray
+    subs: np.ndarray
+    episodes: np.ndarray
+    normal: np.ndarray
+    targets: list[tuple[str, np.ndarray]]
+
+
+def _labels(data: Dataset, got: _Collected) -> _Labels:
+    """The windows' labels; a test split without both nominal and anomalous windows is an error."""
+    kinds = np.array([r.kind for r in got.rows])
+    subs = np.array([r.sub_kind for r in got.rows])
+    episodes = np.array([r.episode for r in got.rows])
+    normal = kinds == "normal"
+    if not normal.any() or normal.all():
+        raise DatasetError(f"{data.path}: the test split needs nominal and anomalous windows to audit")
+    return _Labels(kinds, subs, episodes, normal, _targets(kinds, subs))
+
+
+@dataclass(frozen=True)
+class _References:
+    """The reference detectors, fitted on the nominal training windows, and their test scores."""
+
+    name: str
+    """`early`, or `audio` without an IMU."""
+    early: GaussianReference
+    audio_only: GaussianReference
+    s_early: np.ndarray
+    s_audio: np.ndarray
+
+
 def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     """Every probe on a dataset's test windows (the dataset is verified first)."""
     started = time.perf_counter()
@@ -264,117 +298,149 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     simulated = data.source != IMPORTED
     has_imu = "imu" in data.modalities
     got = _collect(data, progress, simulated, has_imu)
-    kinds = np.array([r.kind for r in got.rows])
-    subs = np.array([r.sub_kind for r in got.rows])
-    episodes = np.array([r.episode for r in got.rows])
-    normal = kinds == "normal"
-    if not normal.any() or normal.all():
-        raise DatasetError(f"{data.path}: the test split needs nominal and anomalous windows to audit")
-    rows: list[ProbeRow] = []
-    targets = _targets(kinds, subs)
-
-    def scalar_rows(group: str, name: str, limit_for: Callable[[str], float | None]) -> None:
-        values = np.asarray(got.scalars[name])
-        for target, mask in targets:
-            raw = _auc(values, normal, mask)
-            rows.append(
-                ProbeRow(
-                    group,
-                    name,
-                    target,
-                    _two_sided(raw),
-                    limit_for(target),
-                    "auc2",
-                    f"AUC {raw:.3f}; {int(mask.sum())} vs {int(normal.sum())} windows",
-                )
-            )
-
-    # Behaviour: limits on collisions only.
-    def behaviour_limit(target: str) -> float | None:
-        return BEHAVIOUR_LIMIT if target == "collision" else None
-
-    def skip(group: str, probe: str, reason: str) -> None:
-        rows.append(ProbeRow(group, probe, "-", math.nan, None, "-", skipped=reason))
-
+    labels = _labels(data, got)
+    rows = _behaviour_rows(got, labels) if simulated else _trace_skip_rows()
+    rows += _naive_rows(got, labels, has_imu)
+    rows += _clipping_rows(got, labels)
     if simulated:
-        for name in BEHAVIOUR_PROBES:
-            scalar_rows("behaviour", name, behaviour_limit)
-        scalar_rows("behaviour", "standing", lambda t: None)
-        scalar_rows("behaviour", "peak_deceleration", lambda t: None)
-    else:
-        for group, needs in TRACE_PROBES:
-            skip(group, "every probe", f"{NO_TRACE}; this probe {needs}")
+        rows.append(_context_row(got, labels))
+    refs = _fit_references(data, got, has_imu)
+    rows += _reference_rows(refs, labels)
+    rows += _leak_rows(got, refs, labels)
+    if simulated:
+        rows += _simulator_probes(data, got, refs.s_audio, refs.audio_only, progress)
+    preset = data.preset_name
+    return AuditResult(str(data.path), preset, data.seed, tuple(rows), time.perf_counter() - started)
 
-    # Naive scalars.
-    def naive_limit(target: str) -> float | None:
-        if target == "overall":
-            return NAIVE_OVERALL_LIMIT
-        return NAIVE_SUB_KIND_LIMIT if target.startswith("sub:") else None
 
-    for name in NAIVE_AUDIO:
-        scalar_rows("naive", name, naive_limit)
-    if has_imu:
-        scalar_rows("naive", "acc_peak", lambda t: None)
-    else:
-        skip("naive", "acc_peak", "the dataset has no IMU modality")
-    # Clipping.
-    clip = signals.clipped(np.asarray(got.scalars["peak"]))
-    for label in ("normal", "collision", "mechanical"):
-        mask = kinds == label
-        if mask.any():
-            rows.append(
-                ProbeRow(
-                    "clipping",
-                    "peak >= -1 dBFS",
-                    label,
-                    float(clip[mask].mean()),
-                    CLIPPING_LIMIT,
-                    "share",
-                    f"{int(clip[mask].sum())} of {int(mask.sum())} windows",
-                )
-            )
-    for sub in sorted(set(subs[~normal])):
-        mask = subs == sub
+def _scalar_rows(
+    got: _Collected, labels: _Labels, group: str, name: str, limit_for: Callable[[str], float | None]
+) -> list[ProbeRow]:
+    """One scalar judged two-sided on every target, against the nominal test windows."""
+    values = np.asarray(got.scalars[name])
+    normal = labels.normal
+    rows = []
+    for target, mask in labels.targets:
+        raw = _auc(values, normal, mask)
         rows.append(
             ProbeRow(
-                "clipping",
-                "peak >= -1 dBFS",
-                f"sub:{sub}",
-                float(clip[mask].mean()),
-                None,
-                "share",
-                f"{int(clip[mask].sum())} of {int(mask.sum())} windows",
-            )
-        )
-    # Context: arena size.
-    if simulated:
-        area = np.asarray(got.area)
-        raw = _auc(area, normal, ~normal)
-        rows.append(
-            ProbeRow(
-                "context",
-                "arena area",
-                "overall",
+                group,
+                name,
+                target,
                 _two_sided(raw),
-                CONTEXT_LIMIT,
+                limit_for(target),
                 "auc2",
-                f"AUC {raw:.3f}; median m2 normal {np.median(area[normal]):.0f}, "
-                f"anomalous {np.median(area[~normal]):.0f}",
+                f"AUC {raw:.3f}; {int(mask.sum())} vs {int(normal.sum())} windows",
             )
         )
+    return rows
 
-    # Reference detectors, fitted on the nominal training windows (audio only without an IMU).
+
+def _no_limit(target: str) -> float | None:
+    return None
+
+
+def _behaviour_limit(target: str) -> float | None:
+    """Behaviour: limits on collisions only."""
+    return BEHAVIOUR_LIMIT if target == "collision" else None
+
+
+def _naive_limit(target: str) -> float | None:
+    if target == "overall":
+        return NAIVE_OVERALL_LIMIT
+    return NAIVE_SUB_KIND_LIMIT if target.startswith("sub:") else None
+
+
+def _skip_row(group: str, probe: str, reason: str) -> ProbeRow:
+    return ProbeRow(group, probe, "-", math.nan, None, "-", skipped=reason)
+
+
+def _trace_skip_rows() -> list[ProbeRow]:
+    """The probes that need the simulator, skipped on an imported dataset."""
+    return [
+        _skip_row(group, "every probe", f"{NO_TRACE}; this probe {needs}") for group, needs in TRACE_PROBES
+    ]
+
+
+def _behaviour_rows(got: _Collected, labels: _Labels) -> list[ProbeRow]:
+    rows: list[ProbeRow] = []
+    for name in BEHAVIOUR_PROBES:
+        rows += _scalar_rows(got, labels, "behaviour", name, _behaviour_limit)
+    rows += _scalar_rows(got, labels, "behaviour", "standing", _no_limit)
+    rows += _scalar_rows(got, labels, "behaviour", "peak_deceleration", _no_limit)
+    return rows
+
+
+def _naive_rows(got: _Collected, labels: _Labels, has_imu: bool) -> list[ProbeRow]:
+    rows: list[ProbeRow] = []
+    for name in NAIVE_AUDIO:
+        rows += _scalar_rows(got, labels, "naive", name, _naive_limit)
+    if has_imu:
+        rows += _scalar_rows(got, labels, "naive", "acc_peak", _no_limit)
+    else:
+        rows.append(_skip_row("naive", "acc_peak", "the dataset has no IMU modality"))
+    return rows
+
+
+def _clipping_row(clip: np.ndarray, mask: np.ndarray, target: str, limit: float | None) -> ProbeRow:
+    return ProbeRow(
+        "clipping",
+        "peak >= -1 dBFS",
+        target,
+        float(clip[mask].mean()),
+        limit,
+        "share",
+        f"{int(clip[mask].sum())} of {int(mask.sum())} windows",
+    )
+
+
+def _clipping_rows(got: _Collected, labels: _Labels) -> list[ProbeRow]:
+    """Share of clipped windows per kind (with a limit) and per anomalous sub-kind (reported)."""
+    clip = signals.clipped(np.asarray(got.scalars["peak"]))
+    rows = []
+    for label in ("normal", "collision", "mechanical"):
+        mask = labels.kinds == label
+        if mask.any():
+            rows.append(_clipping_row(clip, mask, label, CLIPPING_LIMIT))
+    for sub in sorted(set(labels.subs[~labels.normal])):
+        rows.append(_clipping_row(clip, labels.subs == sub, f"sub:{sub}", None))
+    return rows
+
+
+def _context_row(got: _Collected, labels: _Labels) -> ProbeRow:
+    """Context: the arena's area as a score."""
+    area = np.asarray(got.area)
+    normal = labels.normal
+    raw = _auc(area, normal, ~normal)
+    return ProbeRow(
+        "context",
+        "arena area",
+        "overall",
+        _two_sided(raw),
+        CONTEXT_LIMIT,
+        "auc2",
+        f"AUC {raw:.3f}; median m2 normal {np.median(area[normal]):.0f}, "
+        f"anomalous {np.median(area[~normal]):.0f}",
+    )
+
+
+def _fit_references(data: Dataset, got: _Collected, has_imu: bool) -> _References:
+    """Reference detectors, fitted on the nominal training windows (audio only without an IMU)."""
     train, _ = data.load_windows("train")
     test = got.windows()
     reference = "early" if has_imu else "audio"
     early = GaussianReference(reference).fit(train)
     audio_only = GaussianReference("audio").fit(train)
     del train
-    s_early = early.score(test)
-    s_audio = audio_only.score(test)
-    interval = auc_interval(s_early, ~normal, episodes)
-    spread = auc_per_normal_episode(s_early, ~normal, episodes)
-    rows.append(
+    return _References(reference, early, audio_only, early.score(test), audio_only.score(test))
+
+
+def _reference_rows(refs: _References, labels: _Labels) -> list[ProbeRow]:
+    """The reference detector's AUC with its interval and spread, per target; the audio-only one beside."""
+    normal, episodes, reference = labels.normal, labels.episodes, refs.name
+    interval = auc_interval(refs.s_early, ~normal, episodes)
+    spread = auc_per_normal_episode(refs.s_early, ~normal, episodes)
+    rows = [
         ProbeRow(
             "reference",
             f"gaussian-{reference} CI half-width",
@@ -385,10 +451,10 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
             f"AUC {interval.value:.3f} [{interval.low:.3f}, {interval.high:.3f}]; "
             f"over {len(spread)} normal sequences {min(spread.values()):.3f}..{max(spread.values()):.3f}",
         )
-    )
-    for target, mask in targets:
+    ]
+    for target, mask in labels.targets:
         keep = normal | mask
-        ci = auc_interval(s_early[keep], mask[keep], episodes[keep])
+        ci = auc_interval(refs.s_early[keep], mask[keep], episodes[keep])
         rows.append(
             ProbeRow(
                 "reference",
@@ -400,49 +466,48 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
                 f"[{ci.low:.3f}, {ci.high:.3f}]",
             )
         )
-    for target, mask in targets[:3] if reference != "audio" else ():  # audio-only: the reference itself
+    for target, mask in (
+        labels.targets[:3] if reference != "audio" else ()
+    ):  # audio-only: the reference itself
         rows.append(
             ProbeRow(
                 "reference",
                 "gaussian-audio",
                 target,
-                _auc(s_audio, normal, mask),
+                _auc(refs.s_audio, normal, mask),
                 None,
                 "auc",
                 "audio-only reference with the anomaly's sound",
             )
         )
+    return rows
 
-    # Leak: normal stretches of anomaly episodes against nominal test windows.
-    if got.context:
-        ctx = _concat(got.context)
-        s_ctx = early.score(ctx)
-        cat = np.array(got.context_category)
-        for category, target in (("collision", "collision episodes"), ("fault", "fault episodes")):
-            mask = cat == category
-            if mask.any():
-                scores = np.r_[s_early[normal], s_ctx[mask]]
-                raw = roc_auc(
-                    np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores
-                )
-                rows.append(
-                    ProbeRow(
-                        "leak",
-                        f"gaussian-{reference}",
-                        target,
-                        raw,
-                        LEAK_LIMIT,
-                        "auc",
-                        f"{int(mask.sum())} context windows vs {int(normal.sum())} nominal",
-                    )
-                )
 
-    if simulated:
-        rows += _simulator_probes(data, got, s_audio, audio_only, progress)
-    preset = data.preset_name
-    return AuditResult(
-        str(data.path), preset, data.seed, tuple(rows), time.perf_counter() - started
-    )
+def _leak_rows(got: _Collected, refs: _References, labels: _Labels) -> list[ProbeRow]:
+    """Leak: normal stretches of anomaly episodes against nominal test windows."""
+    if not got.context:
+        return []
+    normal = labels.normal
+    s_ctx = refs.early.score(_concat(got.context))
+    cat = np.array(got.context_category)
+    rows = []
+    for category, target in (("collision", "collision episodes"), ("fault", "fault episodes")):
+        mask = cat == category
+        if mask.any():
+            scores = np.r_[refs.s_early[normal], s_ctx[mask]]
+            raw = roc_auc(np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores)
+            rows.append(
+                ProbeRow(
+                    "leak",
+                    f"gaussian-{refs.name}",
+                    target,
+                    raw,
+                    LEAK_LIMIT,
+                    "auc",
+                    f"{int(mask.sum())} context windows vs {int(normal.sum())} nominal",
+                )
+            )
+    return rows
 
 
 def _simulator_probes(

@@ -5,9 +5,9 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
 
 1. Audio front end. "waveform": per-channel z-score, then the Savitzky-Golay smoothing along time (a
    convolution with mirrored edges, like `scipy.ndimage.convolve1d(mode="mirror")`). "logmel": Hann frames
-   of 256 samples every 128 and their real DFT as one strided convolution (cosine and sine rows, only the
-   FFT bins some mel band covers), power, the HTK mel filterbank, log(. + 1e-6), then the per channel and
-   band z-score (`msvdd.logmel`, `msvdd.frontend`).
+   of 256 samples every 128, their real DFT at the FFT bins some mel band covers as matrix products, power,
+   the HTK mel filterbank, log(. + 1e-6), then the per channel and band z-score (`msvdd.logmel`,
+   `msvdd.frontend`).
 2. IMU input: the z-velocity (with the six accelerometer and gyroscope axes for `imu_input="all"`),
    z-scored per channel and smoothed like the waveform.
 3. The network (`msvdd.network.FusionNet`): encoders, fusion, decoders.
@@ -16,6 +16,19 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
    L^-1 = I.
 5. The reconstruction term (mean or peak Huber error per modality, over `rec_scale_`, summed) and
    delta = D + w (mean_D / mean_Rec) Rec, in float64.
+
+The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
+ONNX Runtime session at batch 1:
+
+- Signals travel as (N, C, 1, L) images, so that the 1-D convolutions are 2-D convolutions with 1 x K
+  kernels, which ONNX Runtime runs in its blocked (NCHWc) layout (about twice as fast as its 1-D
+  convolutions); the waveform decoder's transposed convolutions are ordinary convolutions of their
+  polyphase components followed by an interleave (`PolyphaseUpsample`), faster than ONNX Runtime's
+  ConvTranspose.
+- The z-score's division is folded into the smoothing kernel (the mean is still subtracted first: the
+  accelerometer's z axis sits at 9.81 with a small spread, which folding the mean would cancel badly).
+- The log-mel DFT is two half-size matrix products (`LogMel`) instead of a strided convolution, and the
+  Huber error needs no select (Where).
 
 Nothing of the scoring stays outside but checking the window batch and casting it to float32. Decimating
 44.1 kHz audio to the windows' 4410 Hz is not part of scoring (`MSVDD.score` reads decimated windows too):
@@ -35,7 +48,8 @@ from torch import nn
 from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
-from msvdd.model import MSVDD, NotFittedError
+from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, MSVDD, NotFittedError
+from msvdd.network import AudioDecoder, AudioEncoder
 
 
 def _f32(x: np.ndarray) -> torch.Tensor:
@@ -46,62 +60,202 @@ def _f64(x: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float64))
 
 
-class Smoother(nn.Module):
-    """Savitzky-Golay smoothing along time of (N, C, L) signals, each channel and window on its own."""
+class ChannelSmoother(nn.Module):
+    """Per-channel z-score, then Savitzky-Golay smoothing along time: (N, C, 1, L) -> (N, C, 1, L).
 
-    def __init__(self, window: int, polyorder: int) -> None:
+    One grouped 1 x window convolution per channel with the smoothing coefficients over the channel's std
+    (mirrored edges); the mean is subtracted before, so no precision is lost on channels far from zero.
+    `window` 0: no smoothing (the convolution is then the division alone).
+    """
+
+    def __init__(self, mean: np.ndarray, std: np.ndarray, window: int, polyorder: int) -> None:
         super().__init__()
+        mean = np.asarray(mean, dtype=np.float64).reshape(-1)
+        std = np.asarray(std, dtype=np.float64).reshape(-1)
+        self.channels = int(mean.size)
         self.edge = window // 2
-        self.kernel: torch.Tensor | None
-        if window == 0:
-            self.register_buffer("kernel", None)
-        else:
-            # convolve1d convolves; conv1d correlates: flip the coefficients.
-            coeffs = signal.savgol_coeffs(window, polyorder)[::-1]
-            self.register_buffer("kernel", _f32(coeffs).reshape(1, 1, -1))
+        # convolve1d convolves; conv2d correlates: flip the coefficients.
+        coeffs = signal.savgol_coeffs(window, polyorder)[::-1] if window else np.ones(1)
+        self.mean: torch.Tensor
+        self.weight: torch.Tensor
+        self.register_buffer("mean", _f32(mean).reshape(1, -1, 1, 1))
+        self.register_buffer("weight", _f32(coeffs[None, :] / std[:, None]).reshape(self.channels, 1, 1, -1))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(N, C, L) -> (N, C, L)."""
-        if self.kernel is None:
-            return x
-        n, c, length = x.shape
-        padded = F.pad(x.reshape(n * c, 1, length), (self.edge, self.edge), mode="reflect")
-        return F.conv1d(padded, self.kernel).reshape(n, c, length)
+        """(N, C, 1, L) -> (N, C, 1, L)."""
+        x = x - self.mean
+        if self.edge:
+            x = F.pad(x, (self.edge, self.edge, 0, 0), mode="reflect")
+        return F.conv2d(x, self.weight, groups=self.channels)
 
 
 class LogMel(nn.Module):
-    """(N, L, 2) audio -> (N, 2, frames, n_mels) log-mel energies, as `msvdd.logmel.log_mel_frames`."""
+    """(N, L, 2) audio -> (N, 2, frames, n_mels) log-mel energies, as `msvdd.logmel.log_mel_frames`.
+
+    A frame of n_fft = 2 hop samples is two consecutive hop-long blocks, a and b (times the two halves of
+    the Hann window). FFT bin k of the frame is sum_n (a[n] + (-1)^k b[n]) e^(-2 pi i k n / n_fft) over
+    n < hop (the first step of a radix-2 FFT), so the bins some mel band covers are two matrix products of
+    half the size: the even bins of a + b, the odd bins of a - b (cosine and sine columns). Then power, the
+    HTK mel filterbank (one product over the stacked real and imaginary parts), log(. + 1e-6).
+    """
 
     def __init__(self) -> None:
         super().__init__()
+        if LOGMEL_N_FFT != 2 * LOGMEL_HOP:
+            raise ValueError(f"LogMel needs n_fft = 2 hop, got {LOGMEL_N_FFT} and {LOGMEL_HOP}")
         bank = mel_filterbank(LOGMEL_N_MELS, LOGMEL_N_FFT, AUDIO_RATE, LOGMEL_F_MIN, AUDIO_RATE / 2)
         bins = np.flatnonzero(bank.sum(axis=0) > 0)  # FFT bins outside every band do not matter
-        n = np.arange(LOGMEL_N_FFT)
+        even, odd = bins[bins % 2 == 0], bins[bins % 2 == 1]
+        n = np.arange(LOGMEL_HOP)
         window = np.hanning(LOGMEL_N_FFT + 1)[:-1]
-        angle = 2.0 * np.pi * np.outer(bins, n) / LOGMEL_N_FFT
-        dft = np.concatenate([np.cos(angle) * window, -np.sin(angle) * window])
-        self.n_bins = int(bins.size)
-        self.dft: torch.Tensor
-        self.bank_t: torch.Tensor
-        self.register_buffer("dft", _f32(dft)[:, None, :])
-        self.register_buffer("bank_t", _f32(bank[:, bins].T))
+
+        def dft(k: np.ndarray) -> np.ndarray:
+            angle = 2.0 * np.pi * np.outer(n, k) / LOGMEL_N_FFT
+            return np.concatenate([np.cos(angle), -np.sin(angle)], axis=1)
+
+        self.hop = LOGMEL_HOP
+        self.win_a: torch.Tensor
+        self.win_b: torch.Tensor
+        self.dft_even: torch.Tensor
+        self.dft_odd: torch.Tensor
+        self.bank: torch.Tensor
+        self.register_buffer("win_a", _f32(window[:LOGMEL_HOP]))
+        self.register_buffer("win_b", _f32(window[LOGMEL_HOP:]))
+        self.register_buffer("dft_even", _f32(dft(even)))
+        self.register_buffer("dft_odd", _f32(dft(odd)))
+        bank_t = bank.T
+        self.register_buffer("bank", _f32(np.concatenate([bank_t[even]] * 2 + [bank_t[odd]] * 2)))
 
     def forward(self, audio: torch.Tensor) -> torch.Tensor:
         """(N, L, 2) -> (N, 2, T, M)."""
-        n, length, channels = audio.shape
-        x = audio.transpose(1, 2).reshape(n * channels, 1, length)
-        spec = F.conv1d(x, self.dft, stride=LOGMEL_HOP)  # (N C, 2 bins, T)
-        real, imag = spec[:, : self.n_bins], spec[:, self.n_bins :]
-        power = (real * real + imag * imag).transpose(1, 2)  # (N C, T, bins)
-        mel = torch.log(power @ self.bank_t + LOG_MEL_FLOOR)
-        return mel.reshape(n, channels, mel.shape[1], mel.shape[2])
+        _, length, channels = audio.shape
+        frames = (length - 2 * self.hop) // self.hop + 1
+        blocks = audio[:, : (frames + 1) * self.hop].transpose(1, 2)
+        blocks = blocks.reshape(-1, channels, frames + 1, self.hop)
+        a = blocks[:, :, :frames] * self.win_a
+        b = blocks[:, :, 1:] * self.win_b
+        spec = torch.cat([(a + b) @ self.dft_even, (a - b) @ self.dft_odd], dim=3)
+        return torch.log((spec * spec) @ self.bank + LOG_MEL_FLOOR)
+
+
+def _conv2d(conv: nn.Conv1d) -> nn.Conv2d:
+    """The 1 x K 2-D convolution computing `conv` on (N, C, 1, L)."""
+    if conv.groups != 1 or conv.dilation != (1,) or not isinstance(conv.padding, tuple):
+        raise ValueError(f"unsupported convolution {conv}")
+    out = nn.Conv2d(
+        conv.in_channels,
+        conv.out_channels,
+        (1, conv.kernel_size[0]),
+        stride=(1, conv.stride[0]),
+        padding=(0, conv.padding[0]),
+        bias=conv.bias is not None,
+    )
+    with torch.no_grad():
+        out.weight.copy_(conv.weight[:, :, None, :])
+        if conv.bias is not None and out.bias is not None:
+            out.bias.copy_(conv.bias)
+    return out
+
+
+class PolyphaseUpsample(nn.Module):
+    """A `ConvTranspose1d` of stride s, kernel s + 2 p and padding p (output length s L) on (N, C, 1, L).
+
+    Output sample u s + r of channel o is sum_{c, m} W[c, o, m s + r + p] x[c, u - m] over the taps m with
+    0 <= m s + r + p < kernel (|m| <= 1 + (p - 1) // s): an ordinary convolution of x for each phase r. One
+    2-D convolution computes the s phases as s C_out output channels (phase r, channel o); the phases are
+    then interleaved into (N, C_out, 1, s L).
+    """
+
+    def __init__(self, deconv: nn.ConvTranspose1d) -> None:
+        super().__init__()
+        if not isinstance(deconv.padding, tuple):
+            raise ValueError(f"unsupported transposed convolution {deconv}")
+        s, k, p = deconv.stride[0], deconv.kernel_size[0], deconv.padding[0]
+        if deconv.groups != 1 or deconv.dilation != (1,) or deconv.output_padding != (0,) or k != s + 2 * p:
+            raise ValueError(f"unsupported transposed convolution {deconv}")
+        weight = deconv.weight.detach().cpu().to(torch.float64)  # (C_in, C_out, K)
+        c_in, c_out = weight.shape[0], weight.shape[1]
+        reach = 1 + (p - 1) // s if p > 0 else 0  # the taps m run over -reach..reach
+        poly = torch.zeros(s, c_out, c_in, 2 * reach + 1, dtype=torch.float64)
+        for r in range(s):
+            for m in range(-reach, reach + 1):
+                j = m * s + r + p
+                if 0 <= j < k:
+                    poly[r, :, :, reach - m] = weight[:, :, j].T  # correlation tap reach - m reads x[u - m]
+        bias = torch.zeros(c_out) if deconv.bias is None else deconv.bias.detach().cpu()
+        self.stride = s
+        self.c_out = c_out
+        self.conv = nn.Conv2d(c_in, s * c_out, (1, 2 * reach + 1), padding=(0, reach))
+        with torch.no_grad():
+            self.conv.weight.copy_(poly.reshape(s * c_out, c_in, 1, -1).to(torch.float32))
+            assert self.conv.bias is not None
+            self.conv.bias.copy_(bias.to(torch.float32).repeat(s))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(N, C_in, 1, L) -> (N, C_out, 1, s L)."""
+        h = self.conv(x)
+        if self.stride == 1:
+            return h
+        length = h.shape[3]
+        h = h.reshape(-1, self.stride, self.c_out, length).permute(0, 2, 3, 1)
+        return h.reshape(-1, self.c_out, 1, length * self.stride)
+
+
+class AudioEncoder2d(nn.Module):
+    """`msvdd.network.AudioEncoder` on (N, 2, 1, L) images: its convolutions as 1 x K 2-D ones, its LSTM."""
+
+    def __init__(self, encoder: AudioEncoder) -> None:
+        super().__init__()
+        self.convs = nn.Sequential(*(_conv2d(m) if isinstance(m, nn.Conv1d) else m for m in encoder.convs))
+        self.lstm = encoder.lstm
+
+    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+        """(N, 2, 1, L) -> tokens (N, L / 180, d)."""
+        h = self.convs(audio).flatten(2)
+        tokens, _ = self.lstm(h.transpose(1, 2))
+        return tokens
+
+
+class AudioDecoder2d(nn.Module):
+    """`msvdd.network.AudioDecoder` with (N, 2, 1, L) output, its transposed convolutions polyphase."""
+
+    def __init__(self, decoder: AudioDecoder) -> None:
+        super().__init__()
+        self.deconvs = nn.Sequential(
+            *(PolyphaseUpsample(m) if isinstance(m, nn.ConvTranspose1d) else m for m in decoder.deconvs)
+        )
+
+    def forward(self, tokens: torch.Tensor) -> torch.Tensor:
+        """tokens (N, T_A, d) -> audio (N, 2, 1, 180 T_A)."""
+        return self.deconvs(tokens.transpose(1, 2).unsqueeze(2))
+
+
+def huber(x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
+    """Elementwise Huber loss (delta 1) of `x_hat` against `x`: c (|e| - c / 2), c = min(|e|, 1)."""
+    err = (x_hat - x).abs()
+    clipped = err.clamp(max=1.0)
+    return clipped * (err - 0.5 * clipped)
+
+
+def block_peak(err: torch.Tensor, time_axis: int, block: int) -> torch.Tensor:
+    """(N,) the largest mean of `err` over `block` consecutive time steps and every other axis but the batch
+    (as `msvdd.losses.peak_error`, without moving the time axis)."""
+    steps = err.shape[time_axis] // block
+    if steps * block != err.shape[time_axis]:
+        err = err.narrow(time_axis, 0, steps * block)
+    shape = [-1, *err.shape[1:]]
+    shape[time_axis : time_axis + 1] = [steps, block]
+    blocks = err.reshape(shape)
+    others = [d for d in range(1, blocks.dim()) if d != time_axis]
+    return blocks.mean(dim=others).amax(dim=1)
 
 
 class ScoreGraph(nn.Module):
     """A fitted `MSVDD`'s scoring path: (audio, imu[, imu6]) float32 windows -> (N,) float64 delta.
 
-    The network is a CPU copy of the model's (the model itself is left as it is). `forward` takes
-    audio (N, 8820, 2), imu (N, 400) and, when the model reads all IMU axes, imu6 (N, 400, 6).
+    The network's modules are a CPU copy of the model's (the model itself is left as it is), the waveform
+    encoder and decoder rewritten as `AudioEncoder2d` and `AudioDecoder2d`. `forward` takes audio
+    (N, 8820, 2), imu (N, 400) and, when the model reads all IMU axes, imu6 (N, 400, 6).
     """
 
     def __init__(self, model: MSVDD) -> None:
@@ -110,26 +264,39 @@ class ScoreGraph(nn.Module):
         norm = model.normalizer
         if norm is None or model.mu_ is None or model.sigma_ is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load() before exporting")
-        self.model = model
         self.logmel_input = cfg.audio_frontend == "logmel"
         self.imu_all = cfg.imu_input == "all"
         self.use_reconstruction = cfg.use_reconstruction
-        self.net = copy.deepcopy(model.module.net).cpu().eval()
+        self.peak = cfg.rec_score != "mean"
+        net = copy.deepcopy(model.module.net).cpu().eval()
+        self.audio_encoder = (
+            AudioEncoder2d(net.audio_encoder)
+            if isinstance(net.audio_encoder, AudioEncoder)
+            else net.audio_encoder
+        )
+        self.imu_encoder = net.imu_encoder
+        self.fusion = net.fusion
+        self.audio_decoder = (
+            AudioDecoder2d(net.audio_decoder)
+            if isinstance(net.audio_decoder, AudioDecoder)
+            else net.audio_decoder
+        )
+        self.imu_decoder = net.imu_decoder
+        window, order = cfg.smooth_window, cfg.smooth_polyorder
         self.logmel = LogMel() if self.logmel_input else None
-        self.smoother = Smoother(cfg.smooth_window, cfg.smooth_polyorder)
-        self.audio_mean: torch.Tensor
-        self.audio_std: torch.Tensor
-        self.imu_mean: torch.Tensor
-        self.imu_std: torch.Tensor
+        self.audio_smoother = (
+            None if self.logmel_input else ChannelSmoother(norm.audio_mean, norm.audio_std, window, order)
+        )
+        self.imu_smoother = ChannelSmoother(norm.imu_mean, norm.imu_std, window, order)
+        self.logmel_mean: torch.Tensor | None
+        self.logmel_std: torch.Tensor | None
         self.mu: torch.Tensor
         self.whiten: torch.Tensor
         self.rec_scale: torch.Tensor
-        # Statistics shaped to broadcast: log-mel (1, 2, 1, M); waveform and IMU (1, C, 1) on (N, C, L).
-        a_shape = (1, 2, 1, -1) if self.logmel_input else (1, 2, 1)
-        self.register_buffer("audio_mean", _f32(norm.audio_mean).reshape(a_shape))
-        self.register_buffer("audio_std", _f32(norm.audio_std).reshape(a_shape))
-        self.register_buffer("imu_mean", _f32(norm.imu_mean).reshape(1, -1, 1))
-        self.register_buffer("imu_std", _f32(norm.imu_std).reshape(1, -1, 1))
+        # Log-mel statistics shaped to broadcast on (N, 2, T, M).
+        stats = (norm.audio_mean, norm.audio_std) if self.logmel_input else (None, None)
+        for name, value in zip(("logmel_mean", "logmel_std"), stats, strict=True):
+            self.register_buffer(name, None if value is None else _f32(value).reshape(1, 2, 1, -1))
         sigma = model.sigma_.detach().cpu().to(torch.float64)
         chol = torch.linalg.cholesky(sigma)
         eye = torch.eye(sigma.shape[0], dtype=torch.float64)
@@ -139,35 +306,61 @@ class ScoreGraph(nn.Module):
         mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 
-    def inputs(
-        self, audio: torch.Tensor, imu: torch.Tensor, imu6: torch.Tensor | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Normalised network inputs: audio (N, 8820, 2) or log-mel (N, 2, 67, 32), IMU (N, 400[, 7])."""
-        if self.logmel is not None:
-            a = (self.logmel(audio) - self.audio_mean) / self.audio_std
-        else:
-            a = self.smoother((audio.transpose(1, 2) - self.audio_mean) / self.audio_std).transpose(1, 2)
-        if self.imu_all:
-            if imu6 is None:
-                raise ValueError("this model reads all IMU axes: imu6 (N, 400, 6) is needed")
-            i = torch.cat([imu.unsqueeze(1), imu6.transpose(1, 2)], dim=1)
-        else:
-            i = imu.unsqueeze(1)
-        i = self.smoother((i - self.imu_mean) / self.imu_std)
-        i = i.transpose(1, 2) if self.imu_all else i[:, 0]
-        return a, i
+    def audio_input(self, audio: torch.Tensor) -> torch.Tensor:
+        """Normalised audio: log-mel (N, 2, 67, 32), or the smoothed waveform as (N, 2, 1, 8820)."""
+        if self.logmel is not None and self.logmel_mean is not None and self.logmel_std is not None:
+            return (self.logmel(audio) - self.logmel_mean) / self.logmel_std
+        if self.audio_smoother is None:
+            raise RuntimeError("ScoreGraph has neither a log-mel nor a waveform front end")
+        return self.audio_smoother(audio.transpose(1, 2).unsqueeze(2))
+
+    def imu_input(self, imu: torch.Tensor, imu6: torch.Tensor | None) -> torch.Tensor:
+        """Normalised, smoothed IMU input of the network: (N, 400), or (N, 400, 7) for all axes."""
+        if not self.imu_all:
+            return self.imu_smoother(imu[:, None, None, :]).flatten(1)
+        if imu6 is None:
+            raise ValueError("this model reads all IMU axes: imu6 (N, 400, 6) is needed")
+        channels = torch.cat([imu.unsqueeze(1), imu6.transpose(1, 2)], dim=1)
+        return self.imu_smoother(channels.unsqueeze(2)).flatten(2).transpose(1, 2)
+
+    def audio_error(self, a: torch.Tensor, a_rec: torch.Tensor) -> torch.Tensor:
+        """(N,) reconstruction error of the audio input, as `MSVDD.rec_parts` measures it."""
+        err = huber(a, a_rec)  # log-mel (N, 2, T, M) or waveform (N, 2, 1, L)
+        if not self.peak:
+            return err.mean(dim=(1, 2, 3))
+        if self.logmel_input:
+            return block_peak(err, 2, 1)
+        return block_peak(err, 3, AUDIO_SAMPLES_PER_TOKEN)
+
+    def imu_error(self, i: torch.Tensor, i_rec: torch.Tensor) -> torch.Tensor:
+        """(N,) reconstruction error of the IMU input, as `MSVDD.rec_parts` measures it."""
+        err = huber(i, i_rec)  # (N, 400) or (N, 400, 7)
+        if not self.peak:
+            return err.mean(dim=tuple(range(1, err.dim())))
+        return (err.mean(dim=2) if err.dim() == 3 else err).amax(dim=1)
 
     def forward(
         self, audio: torch.Tensor, imu: torch.Tensor, imu6: torch.Tensor | None = None
     ) -> torch.Tensor:
         """(N,) float64 anomaly scores delta = D + w (mean_D / mean_Rec) Rec."""
-        a, i = self.inputs(audio, imu, imu6)
-        out = self.net(a, i)
-        y = (out.z.to(torch.float64) - self.mu) @ self.whiten
+        a = a_tokens = i = i_tokens = None
+        if self.audio_encoder is not None:
+            a = self.audio_input(audio)
+            a_tokens = self.audio_encoder(a)
+        if self.imu_encoder is not None:
+            i = self.imu_input(imu, imu6)
+            i_tokens = self.imu_encoder(i)
+        z = self.fusion(a_tokens, i_tokens).z
+        y = (z.to(torch.float64) - self.mu) @ self.whiten
         score = torch.sqrt((y * y).sum(dim=1))
-        if self.use_reconstruction:
-            parts = self.model.rec_parts(out, a, i)
-            if parts:
-                rec = (torch.stack(parts, dim=1).to(torch.float64) / self.rec_scale[: len(parts)]).sum(dim=1)
-                score = score + self.rec_weight * rec
+        if not self.use_reconstruction:
+            return score
+        parts = []
+        if self.audio_decoder is not None and a is not None and a_tokens is not None:
+            parts.append(self.audio_error(a, self.audio_decoder(a_tokens)))
+        if self.imu_decoder is not None and i is not None and i_tokens is not None:
+            parts.append(self.imu_error(i, self.imu_decoder(i_tokens)))
+        if parts:
+            rec = (torch.stack(parts, dim=1).to(torch.float64) / self.rec_scale[: len(parts)]).sum(dim=1)
+            score = score + self.rec_weight * rec
         return score

@@ -299,9 +299,14 @@ class StreamingScorer:
             return
         start = DECIMATION * n_dec - FIR_HALF - self._raw0
         stop = DECIMATION * q_last + FIR_HALF + 1 - self._raw0
-        # output q = sum_j h[j] x[10 q + 200 - j]: the reversed taps dotted with raw[10 q - 200 : 10 q + 201]
-        frames = np.lib.stride_tricks.sliding_window_view(self._raw[start:stop], FIR_TAPS.size, axis=0)
-        new = (frames[::DECIMATION] @ _TAPS_REVERSED).astype(np.float32)
+        # output q = sum_j h[j] x[10 q + 200 - j]: the reversed taps dotted with raw[10 q - 200 : 10 q + 201],
+        # each channel; the frames are a strided view of the raw samples (every 10th of the sliding windows)
+        raw = np.ascontiguousarray(self._raw[start:stop])
+        row, col = raw.strides
+        frames = np.lib.stride_tricks.as_strided(
+            raw, (q_last + 1 - n_dec, 2, FIR_TAPS.size), (DECIMATION * row, col, row), writeable=False
+        )
+        new = (frames @ _TAPS_REVERSED).astype(np.float32)
         self._dec = np.concatenate([self._dec, new])
         keep_from = DECIMATION * (q_last + 1) - FIR_HALF - self._raw0
         self._raw = self._raw[keep_from:]
@@ -341,9 +346,14 @@ class StreamingScorer:
         if not ks:
             return []
         starts = np.array([self._starts(j) for j in ks])
-        a_idx = (starts[:, 0] - self._dec0)[:, None] + np.arange(AUDIO_LEN)
-        i_idx = (starts[:, 1] - self._imu0)[:, None] + np.arange(IMU_LEN)
-        windows = Windows(audio=self._dec[a_idx], imu=self._imu[i_idx], imu6=self._imu6[i_idx])
+        if len(ks) == 1:  # the usual case: views of the buffers (never written in place), no gather
+            a, i = int(starts[0, 0]) - self._dec0, int(starts[0, 1]) - self._imu0
+            audio, imu = self._dec[None, a : a + AUDIO_LEN], self._imu[None, i : i + IMU_LEN]
+            windows = Windows(audio=audio, imu=imu, imu6=self._imu6[None, i : i + IMU_LEN])
+        else:
+            a_idx = (starts[:, 0] - self._dec0)[:, None] + np.arange(AUDIO_LEN)
+            i_idx = (starts[:, 1] - self._imu0)[:, None] + np.arange(IMU_LEN)
+            windows = Windows(audio=self._dec[a_idx], imu=self._imu[i_idx], imu6=self._imu6[i_idx])
         scores = np.asarray(self.model.score(windows), dtype=np.float64)
         c = self._counters
         c.windows_emitted += len(ks)

@@ -1,6 +1,7 @@
 """The ONNX export of M-SVDD's scoring path: parity with torch on real windows at two batch sizes, the CLI
 round trip, the ONNX Runtime backend of the streaming scorer, the graph without export for every variant,
-and what the export refuses."""
+its rewritten pieces against the modules and functions they stand for, the LSTM simplification, and what the
+export refuses."""
 
 from __future__ import annotations
 
@@ -11,17 +12,31 @@ import numpy as np
 import onnx
 import pytest
 import torch
+import torch.nn.functional as F
+from onnx import TensorProto, helper
 
 from benchmarks.cli import main
 from benchmarks.dataset import open_dataset
 from benchmarks.episode import read_episode
 from benchmarks.methods import load_detector
 from msvdd.config import MSVDDConfig
-from msvdd.contract import WindowError, Windows
-from msvdd.export import ExportOptions, export_onnx, max_relative_difference
-from msvdd.model import MSVDD, NotFittedError
+from msvdd.contract import AUDIO_RATE, WindowError, Windows
+from msvdd.export import ExportOptions, export_onnx, max_relative_difference, simplify_lstm_glue
+from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
+from msvdd.logmel import log_mel_frames
+from msvdd.losses import peak_error
+from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, MSVDD, NotFittedError
+from msvdd.network import AudioDecoder, AudioEncoder
 from msvdd.onnx_backend import MANIFEST_FILE, ONNX_FILE, OnnxFormatError, OnnxScorer
-from msvdd.score_graph import ScoreGraph
+from msvdd.score_graph import (
+    AudioDecoder2d,
+    AudioEncoder2d,
+    LogMel,
+    PolyphaseUpsample,
+    ScoreGraph,
+    block_peak,
+    huber,
+)
 from msvdd.stream import StreamingScorer
 from msvdd.synthetic import toy_windows
 
@@ -150,6 +165,72 @@ def test_score_graph_reproduces_msvdd_score_for_every_variant(overrides: dict[st
     with torch.inference_mode():
         got = graph(*(torch.from_numpy(x) for x in (batch.audio, batch.imu, batch.imu6))).numpy()
     assert max_relative_difference(got, model.score(batch)) <= RTOL
+
+
+def test_rewritten_graph_pieces_match_what_they_stand_for() -> None:
+    """The 2-D audio encoder, the polyphase decoder, the matrix log-mel, Huber and the block peak: the
+    modules and functions of `MSVDD.score` they replace give the same numbers."""
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    audio = rng.standard_normal((2, 8820, 2)).astype(np.float32)
+    x = torch.from_numpy(audio)
+    encoder, decoder = AudioEncoder(8).eval(), AudioDecoder(8).eval()
+    with torch.inference_mode():
+        tokens = encoder(x)
+        assert torch.allclose(AudioEncoder2d(encoder)(x.transpose(1, 2).unsqueeze(2)), tokens, atol=1e-5)
+        rebuilt = AudioDecoder2d(decoder)(tokens)[:, :, 0].transpose(1, 2)
+        assert torch.allclose(rebuilt, decoder(tokens), atol=1e-5)
+        for stride, pad in (
+            (1, 1),
+            (2, 2),
+            (3, 2),
+            (5, 3),
+            (4, 1),
+            (2, 0),
+            (2, 5),
+        ):  # kernel = stride + 2 pad
+            deconv = torch.nn.ConvTranspose1d(3, 5, stride + 2 * pad, stride=stride, padding=pad).eval()
+            signal = torch.randn(2, 3, 7)
+            assert torch.allclose(
+                PolyphaseUpsample(deconv)(signal.unsqueeze(2))[:, :, 0], deconv(signal), atol=1e-5
+            )
+        logmel = LogMel()(x).numpy()
+    expected = log_mel_frames(
+        audio, AUDIO_RATE, LOGMEL_N_FFT, LOGMEL_HOP, LOGMEL_N_MELS, LOGMEL_F_MIN, AUDIO_RATE / 2, False
+    )
+    assert logmel.shape == expected.shape and np.abs(logmel - expected).max() < 1e-4
+    with pytest.raises(ValueError, match="unsupported"):
+        PolyphaseUpsample(torch.nn.ConvTranspose1d(3, 5, 4, stride=2, padding=0))
+    target, recon = torch.randn(3, 8820, 2) * 2, torch.randn(3, 8820, 2) * 2
+    err = F.huber_loss(recon, target, reduction="none", delta=1.0)
+    assert torch.allclose(huber(target, recon), err, atol=1e-6)
+    images = err.transpose(1, 2).unsqueeze(2)  # (N, 2, 1, L), the graph's layout
+    got = block_peak(images, 3, AUDIO_SAMPLES_PER_TOKEN)
+    assert torch.allclose(got, peak_error(target, recon, 1, AUDIO_SAMPLES_PER_TOKEN), rtol=1e-5)
+    assert torch.allclose(block_peak(err[:, :8819], 1, 7), err[:, :8813].reshape(3, 1259, -1).mean(2).amax(1))
+
+
+def test_exported_lstms_start_from_zeros_and_are_squeezed(exported: Path) -> None:
+    """`simplify_lstm_glue` ran: no LSTM gets initial states built from the batch size, each one-directional
+    output goes straight into a Squeeze, and no Shape node is left for them."""
+    graph = onnx.load(str(exported / ONNX_FILE)).graph
+    lstms = [node for node in graph.node if node.op_type == "LSTM"]
+    assert len(lstms) == 5  # log-mel encoder, two IMU encoder layers, two IMU decoder layers
+    readers = {name: node.op_type for node in graph.node for name in node.input}
+    assert all(len(node.input) == 4 and readers[node.output[0]] == "Squeeze" for node in lstms)
+    assert not [node for node in graph.node if node.op_type == "Shape"]
+
+
+def test_simplify_lstm_glue_leaves_other_graphs_alone() -> None:
+    nodes = [helper.make_node("Relu", ["x"], ["h"]), helper.make_node("Neg", ["x"], ["unused"])]
+    nodes.append(helper.make_node("Abs", ["h"], ["y"]))
+    value = helper.make_tensor_value_info
+    graph = helper.make_graph(
+        nodes, "g", [value("x", TensorProto.FLOAT, [2])], [value("y", TensorProto.FLOAT, [2])]
+    )
+    model = helper.make_model(graph)
+    assert simplify_lstm_glue(model) == 1  # only the node nothing reads goes
+    assert [node.op_type for node in model.graph.node] == ["Relu", "Abs"]
 
 
 def test_export_refusals(

@@ -43,10 +43,13 @@ from msvdd.synthetic import toy_windows
 RTOL = 1e-4
 
 
-pytestmark = pytest.mark.xdist_group("export")  # with `pytest -n`: one worker, the module fixtures once
+pytestmark = pytest.mark.xdist_group("export")  # with `pytest -n`: one worker
+
+# Session scope: a worker may run other modules' tests between this module's, which would tear a
+# module-scoped fixture down and export again (20 s each time).
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def exported(tiny_model: Path, tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The tiny M-SVDD model exported through the CLI, checked on the dataset's test windows."""
     out = tmp_path_factory.mktemp("onnx") / "msvdd"
@@ -55,7 +58,7 @@ def exported(tiny_model: Path, tiny_dataset: Path, tmp_path_factory: pytest.Temp
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def torch_model(tiny_model: Path) -> MSVDD:
     _, detector = load_detector(tiny_model)
     assert isinstance(detector, MSVDD)

@@ -43,37 +43,12 @@ def extend_runs(found: list[tuple[int, int]], idx: np.ndarray, gap: int) -> None
     found.extend(new)
 
 
-class ObstacleVelocity:
-    """Obstacle velocities from their positions as `np.gradient(pos, dt, axis=0)` gives them (central
-    differences inside, one-sided at both ends), bit for bit, computed only at the rows read: `[i, k]` is
-    obstacle k's (3,) velocity at step i (`contact_events` reads two rows per event)."""
-
-    def __init__(self, pos: np.ndarray, dt: float) -> None:
-        """pos: (n, K, 3) obstacle positions at every physics step; dt: physics step, s."""
-        self.pos = pos
-        self.dt = dt
-
-    def __getitem__(self, index: tuple[int, int]) -> np.ndarray:
-        i, k = index
-        pos, n = self.pos, self.pos.shape[0]
-        i = i + n if i < 0 else i
-        if not 0 <= i < n:
-            raise IndexError(f"step {index[0]} out of range for {n} steps")
-        if n < 2:
-            return np.zeros(pos.shape[2:])
-        if i == 0:
-            return (pos[1, k] - pos[0, k]) / self.dt
-        if i == n - 1:
-            return (pos[n - 1, k] - pos[n - 2, k]) / self.dt
-        return (pos[i + 1, k] - pos[i - 1, k]) / (2.0 * self.dt)
-
-
 def contact_events(
     found: np.ndarray,
     force: np.ndarray,
     pos: np.ndarray,
     base_linvel: np.ndarray,
-    obstacle_vel: np.ndarray | ObstacleVelocity,
+    obstacle_vel: np.ndarray,
     obstacles: tuple[ObstacleRecord, ...],
     dt: float,
 ) -> tuple[ContactEvents, list[tuple[int, int, int]]]:
@@ -84,8 +59,7 @@ def contact_events(
         force: (n, K, 3) net force of the robot on each obstacle, world frame, N.
         pos: (n, K, 3) contact centroids.
         base_linvel: (n, 3) robot velocity, world frame.
-        obstacle_vel: (n, K, 3) obstacle velocities, world frame (or `ObstacleVelocity`: the same, computed
-            only at the rows read).
+        obstacle_vel: (n, K, 3) obstacle velocities, world frame.
         obstacles: the K obstacle records.
         dt: physics step, s.
 

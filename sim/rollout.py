@@ -8,7 +8,7 @@ import numpy as np
 
 from sim.driving import RouteController
 from sim.engine import CONTROL_STEPS, Engine
-from sim.events import MERGE_GAP, ObstacleVelocity, contact_events, labels, transient_events
+from sim.events import MERGE_GAP, contact_events, labels, transient_events
 from sim.faults import fault_record
 from sim.imu import imu_samples
 from sim.scenario import Scenario
@@ -205,7 +205,7 @@ def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray | Recording,
         time, cols(sl.acc, 3), cols(sl.base_angvel, 3), cols(sl.vel, 3), scenario.sensors, scenario.seed
     )
     ob_pos = cols(sl.obstacle_pos, 3 * k).reshape(n, k, 3)
-    ob_vel = ObstacleVelocity(ob_pos, dt)  # np.gradient(ob_pos, dt, axis=0), at the rows contact_events reads
+    ob_vel = np.gradient(ob_pos, dt, axis=0) if n > 1 else np.zeros_like(ob_pos)
     found, hits = contact(sl.obstacle_contact, k)
     contacts, event_runs = contact_events(
         found, hits[:, :, 1:4], hits[:, :, 4:7], base_linvel, ob_vel, world.obstacles, dt

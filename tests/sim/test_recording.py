@@ -1,9 +1,8 @@
 """`simulate`'s fast recording path gives the same trace, bit for bit, as the plain one.
 
 `run_route` records through a cache-sized buffer moved block by block, keeps contact force and centroid only
-in blocks with a contact, computes obstacle velocities only where the events read them and builds the wheel
-commands as Python floats; each must give exactly what one (n, nsensordata) array of every step, a full
-`np.gradient` and the numpy formula give.
+in blocks with a contact and builds the wheel commands as Python floats; each must give exactly what one
+(n, nsensordata) array of every step and the numpy formula give.
 """
 
 from __future__ import annotations
@@ -13,7 +12,6 @@ import pytest
 
 from sim import scenario_presets
 from sim.engine import Engine
-from sim.events import ObstacleVelocity
 from sim.rollout import RECORD_PERIODS, assemble_trace, run_route
 from sim.trace import _flatten
 from sim.world import build_world
@@ -47,19 +45,6 @@ def test_recording_matches_one_array_of_every_step(preset: str, monkeypatch: pyt
         assert value.dtype == got[key].dtype and np.array_equal(value, got[key]), key
     if preset.startswith("collision"):
         assert len(trace.contacts.time) > 0  # the sparse contact arrays were exercised
-
-
-@pytest.mark.parametrize("n", [1, 2, 3, 50])
-def test_obstacle_velocity_is_numpy_gradient_bit_for_bit(n: int) -> None:
-    pos = np.random.default_rng(n).normal(size=(n, 4, 3)) * 7.3
-    dt = 0.0025
-    expected = np.gradient(pos, dt, axis=0) if n > 1 else np.zeros_like(pos)
-    velocity = ObstacleVelocity(pos, dt)
-    for i in range(-n, n):
-        for k in range(4):
-            assert np.array_equal(velocity[i, k], expected[i, k])
-    with pytest.raises(IndexError):
-        velocity[n, 0]
 
 
 def test_wheel_commands_are_the_numpy_formula_bit_for_bit() -> None:

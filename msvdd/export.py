@@ -6,10 +6,8 @@ holds the audio front end (waveform normalisation and smoothing, or the log-mel 
 normaliser, the encoders, fusion and decoders, the Mahalanobis distance to mu with the fitted inverse
 covariance, and the reconstruction term. It is exported with torch's dynamo exporter
 (`torch.onnx.export(..., dynamo=True)`) from an example batch of `ExportOptions.example_windows` windows with
-a dynamic batch dimension. What the exporter writes around each LSTM to serve any batch size (zero initial
-states built from the batch size, a shape-computed reshape of its output) is then simplified
-(`simplify_lstm_glue`): ONNX Runtime spends more time on those few-element nodes than on the LSTM's
-arithmetic at batch 1.
+a dynamic batch dimension; each LSTM layer is one `msvdd.score_graph.lstm_layer` op, which becomes one ONNX
+LSTM node (`_onnx_lstm_layer`).
 
 What stays in numpy (in `msvdd.onnx_backend.OnnxScorer.score`): checking the `Windows` batch and casting its
 arrays to contiguous float32. Decimation from 44.1 kHz is not part of scoring (`MSVDD.score` reads decimated
@@ -35,11 +33,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import onnx
 import torch
-from onnx import numpy_helper
+from onnxscript import INT64
+from onnxscript import opset18 as op
 
 from msvdd.contract import Windows
 from msvdd.model import MSVDD, NotFittedError
@@ -119,112 +119,12 @@ def _arrays(batch: Windows, names: tuple[str, ...]) -> tuple[torch.Tensor, ...]:
     return tuple(torch.from_numpy(np.ascontiguousarray(values[n], dtype=np.float32)) for n in names)
 
 
-_SQUEEZE_AXIS = "msvdd_lstm_direction_axis"
-"""Initializer added by `simplify_lstm_glue`: the axis [1] of an LSTM output's direction dimension."""
-_SHAPE_ONLY = frozenset({"Expand", "Slice", "Reshape", "Unsqueeze", "Squeeze", "Cast", "Identity"})
-
-
-def _constants(graph: onnx.GraphProto) -> dict[str, np.ndarray]:
-    found = {init.name: numpy_helper.to_array(init) for init in graph.initializer}
-    for node in graph.node:
-        if node.op_type == "Constant":
-            for attr in node.attribute:
-                if attr.name == "value":
-                    found[node.output[0]] = numpy_helper.to_array(attr.t)
-    return found
-
-
-def _attribute(node: onnx.NodeProto, name: str) -> object:
-    for attr in node.attribute:
-        if attr.name == name:
-            return onnx.helper.get_attribute_value(attr)
-    return None
-
-
-def _rank(graph: onnx.GraphProto, name: str) -> int | None:
-    for info in graph.value_info:
-        if info.name == name and info.type.tensor_type.HasField("shape"):
-            return len(info.type.tensor_type.shape.dim)
-    return None
-
-
-def _prune(graph: onnx.GraphProto) -> int:
-    """Remove the nodes, initializers and value infos that no graph output depends on; -> nodes removed."""
-    live = {out.name for out in graph.output}
-    keep: list[onnx.NodeProto] = []
-    for node in reversed(graph.node):
-        if any(out in live for out in node.output):
-            keep.append(node)
-            live.update(name for name in node.input if name)
-    removed = len(graph.node) - len(keep)
-    graph.ClearField("node")
-    graph.node.extend(reversed(keep))
-    for field, items in (("initializer", graph.initializer), ("value_info", graph.value_info)):
-        kept = [item for item in items if item.name in live]
-        graph.ClearField(field)
-        getattr(graph, field).extend(kept)
-    return removed
-
-
-def simplify_lstm_glue(model: onnx.ModelProto) -> int:
-    """Simplify, in place, what the exporter writes around each one-directional LSTM; -> nodes removed.
-
-    - Initial states that are zeros broadcast to the batch size are dropped (without them an ONNX LSTM
-      starts from zeros).
-    - The output Y (T, 1, N, H), transposed to (T, N, 1, H) and reshaped to (T, N, H) with a shape computed
-      from its Shape, becomes Squeeze(Y, axis 1).
-
-    Then every node no output depends on is removed. The function is the same; a graph without these
-    patterns is left as it is (export checks the result against `MSVDD.score` either way).
-    """
-    graph = model.graph
-    consts = _constants(graph)
-    producer = {out: node for node in graph.node for out in node.output}
-    consumers: dict[str, list[onnx.NodeProto]] = {}
-    for node in graph.node:
-        for name in node.input:
-            consumers.setdefault(name, []).append(node)
-
-    def is_zero(name: str, depth: int = 0) -> bool:
-        if name in consts:
-            return not np.any(consts[name])
-        node = producer.get(name)
-        if node is None or depth > 8:
-            return False
-        if node.op_type == "ConstantOfShape":
-            value = _attribute(node, "value")
-            return value is None or not np.any(numpy_helper.to_array(value))  # type: ignore[arg-type]
-        return node.op_type in _SHAPE_ONLY and is_zero(node.input[0], depth + 1)
-
-    squeezed = False
-    for lstm in [node for node in graph.node if node.op_type == "LSTM"]:
-        direction = _attribute(lstm, "direction")
-        if direction not in (None, b"forward", b"reverse") or _attribute(lstm, "layout") not in (None, 0):
-            continue
-        inputs = list(lstm.input)
-        if len(inputs) == 7 and inputs[4] == "" and is_zero(inputs[5]) and is_zero(inputs[6]):
-            del lstm.input[4:]
-        if not lstm.output or not lstm.output[0]:
-            continue
-        y = lstm.output[0]
-        for transpose in consumers.get(y, []):
-            perm = _attribute(transpose, "perm")
-            if transpose.op_type != "Transpose" or list(perm or []) != [0, 2, 1, 3]:  # type: ignore[call-overload]
-                continue
-            for reshape in consumers.get(transpose.output[0], []):
-                if (
-                    reshape.op_type == "Reshape"
-                    and reshape.input[0] == transpose.output[0]
-                    and _rank(graph, reshape.output[0]) == 3
-                ):
-                    reshape.op_type = "Squeeze"
-                    reshape.ClearField("attribute")
-                    reshape.input[0] = y
-                    reshape.input[1] = _SQUEEZE_AXIS
-                    squeezed = True
-    if squeezed:
-        graph.initializer.append(numpy_helper.from_array(np.array([1], dtype=np.int64), _SQUEEZE_AXIS))
-    return _prune(graph)
+def _onnx_lstm_layer(x: Any, w: Any, r: Any, b: Any) -> Any:
+    """ONNX translation of `msvdd.score_graph.lstm_layer`: one LSTM node on the time-major input, its
+    (T, 1, N, H) output squeezed and back to batch first."""
+    y, _, _ = op.LSTM(op.Transpose(x, perm=[1, 0, 2]), w, r, b, hidden_size=r.shape[2])
+    direction_axis = cast(INT64, op.Constant(value_ints=[1]))
+    return op.Transpose(op.Squeeze(y, direction_axis), perm=[1, 0, 2])
 
 
 def export_graph(model: MSVDD, path: Path, options: ExportOptions) -> tuple[str, ...]:
@@ -247,11 +147,11 @@ def export_graph(model: MSVDD, path: Path, options: ExportOptions) -> tuple[str,
             dynamic_shapes=tuple({0: batch} for _ in names),
             opset_version=options.opset,
             verbose=False,
+            custom_translation_table={torch.ops.msvdd.lstm_layer.default: _onnx_lstm_layer},
         )
     if program is None:
         raise ExportError("torch.onnx.export returned no ONNX program")
     proto = program.model_proto
-    simplify_lstm_glue(proto)
     onnx.checker.check_model(proto)
     onnx.save_model(proto, str(path))
     return names

@@ -29,6 +29,10 @@ ONNX Runtime session at batch 1:
   accelerometer's z axis sits at 9.81 with a small spread, which folding the mean would cancel badly).
 - The log-mel DFT is two half-size matrix products (`LogMel`) instead of a strided convolution, and the
   Huber error needs no select (Where).
+- Each LSTM layer is one `lstm_layer` op with its weights already in ONNX's gate order: it becomes one ONNX
+  LSTM node without initial states (ONNX Runtime starts from zeros), where the exporter's own translation
+  adds zero states built from the batch size and a shape-computed reshape around it, few-element nodes that
+  cost more than the LSTM's arithmetic at batch 1.
 
 Nothing of the scoring stays outside but checking the window batch and casting it to float32. Decimating
 44.1 kHz audio to the windows' 4410 Hz is not part of scoring (`MSVDD.score` reads decimated windows too):
@@ -136,6 +140,78 @@ class LogMel(nn.Module):
         b = blocks[:, :, 1:] * self.win_b
         spec = torch.cat([(a + b) @ self.dft_even, (a - b) @ self.dft_odd], dim=3)
         return torch.log((spec * spec) @ self.bank + LOG_MEL_FLOOR)
+
+
+def _onnx_gate_order(m: torch.Tensor) -> torch.Tensor:
+    """Gate blocks along dim 0 from torch's (input, forget, cell, output) to ONNX's (input, output, forget,
+    cell)."""
+    i, f, g, o = m.chunk(4, dim=0)
+    return torch.cat([i, o, f, g])
+
+
+def _torch_gate_order(m: torch.Tensor) -> torch.Tensor:
+    """The inverse of `_onnx_gate_order`."""
+    i, o, f, g = m.chunk(4, dim=0)
+    return torch.cat([i, f, g, o])
+
+
+@torch.library.custom_op("msvdd::lstm_layer", mutates_args=())
+def lstm_layer(x: torch.Tensor, w: torch.Tensor, r: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """One forward LSTM layer from zero states: x (N, T, I) -> hidden states (N, T, H).
+
+    The weights are in ONNX's layout (W (1, 4H, I), R (1, 4H, H), B (1, 8H), gates input, output, forget,
+    cell), so that the exporter maps the op onto one ONNX LSTM node (`msvdd.export`) with nothing around it;
+    here it runs as `torch.lstm`. As one opaque op, tracing it for export costs the same for any sequence
+    length (the exporter otherwise traces the LSTM one time step at a time, with a symbolic batch size).
+    """
+    hidden = r.shape[2]
+    params = [_torch_gate_order(w[0]), _torch_gate_order(r[0])]
+    params += [_torch_gate_order(b[0, : 4 * hidden]), _torch_gate_order(b[0, 4 * hidden :])]
+    zeros = x.new_zeros(1, x.shape[0], hidden)
+    out, _, _ = torch.lstm(x, (zeros, zeros), params, True, 1, 0.0, False, False, True)
+    return out
+
+
+@lstm_layer.register_fake
+def _lstm_layer_shape(x: torch.Tensor, w: torch.Tensor, r: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    return x.new_empty(x.shape[0], x.shape[1], r.shape[2])
+
+
+class ExportLSTM(nn.Module):
+    """A batch-first, one-directional `nn.LSTM` called without initial states, as `lstm_layer` ops.
+
+    `forward(x)` returns `(output, None)`: the network's call sites read the output only.
+    """
+
+    def __init__(self, lstm: nn.LSTM) -> None:
+        super().__init__()
+        if not lstm.batch_first or lstm.bidirectional or lstm.proj_size or not lstm.bias:
+            raise ValueError(f"unsupported LSTM {lstm} (batch first, one direction, biases, no projection)")
+        self.layers = lstm.num_layers
+        for k in range(self.layers):
+            w_ih, w_hh, b_ih, b_hh = (
+                getattr(lstm, f"{name}_l{k}").detach().cpu()
+                for name in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
+            )
+            self.register_buffer(f"w{k}", _onnx_gate_order(w_ih)[None].contiguous())
+            self.register_buffer(f"r{k}", _onnx_gate_order(w_hh)[None].contiguous())
+            self.register_buffer(f"b{k}", torch.cat([_onnx_gate_order(b_ih), _onnx_gate_order(b_hh)])[None])
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, None]:
+        """(N, T, I) -> ((N, T, H), None)."""
+        for k in range(self.layers):
+            w, r, b = (getattr(self, f"{name}{k}") for name in "wrb")
+            x = lstm_layer(x, w, r, b)
+        return x, None
+
+
+def _export_lstms(module: nn.Module) -> None:
+    """Replace, in place, every `nn.LSTM` inside `module` by its `ExportLSTM`."""
+    for name, child in module.named_children():
+        if isinstance(child, nn.LSTM):
+            setattr(module, name, ExportLSTM(child))
+        else:
+            _export_lstms(child)
 
 
 def _conv2d(conv: nn.Conv1d) -> nn.Conv2d:
@@ -254,7 +330,8 @@ class ScoreGraph(nn.Module):
     """A fitted `MSVDD`'s scoring path: (audio, imu[, imu6]) float32 windows -> (N,) float64 delta.
 
     The network's modules are a CPU copy of the model's (the model itself is left as it is), the waveform
-    encoder and decoder rewritten as `AudioEncoder2d` and `AudioDecoder2d`. `forward` takes audio
+    encoder and decoder rewritten as `AudioEncoder2d` and `AudioDecoder2d`, every LSTM as `ExportLSTM`.
+    `forward` takes audio
     (N, 8820, 2), imu (N, 400) and, when the model reads all IMU axes, imu6 (N, 400, 6).
     """
 
@@ -269,6 +346,7 @@ class ScoreGraph(nn.Module):
         self.use_reconstruction = cfg.use_reconstruction
         self.peak = cfg.rec_score != "mean"
         net = copy.deepcopy(model.module.net).cpu().eval()
+        _export_lstms(net)
         self.audio_encoder = (
             AudioEncoder2d(net.audio_encoder)
             if isinstance(net.audio_encoder, AudioEncoder)

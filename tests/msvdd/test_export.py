@@ -13,7 +13,6 @@ import onnx
 import pytest
 import torch
 import torch.nn.functional as F
-from onnx import TensorProto, helper
 
 from benchmarks.cli import main
 from benchmarks.dataset import open_dataset
@@ -21,7 +20,7 @@ from benchmarks.episode import read_episode
 from benchmarks.methods import load_detector
 from msvdd.config import MSVDDConfig
 from msvdd.contract import AUDIO_RATE, WindowError, Windows
-from msvdd.export import ExportOptions, export_onnx, max_relative_difference, simplify_lstm_glue
+from msvdd.export import ExportOptions, export_onnx, max_relative_difference
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import log_mel_frames
 from msvdd.losses import peak_error
@@ -31,6 +30,7 @@ from msvdd.onnx_backend import MANIFEST_FILE, ONNX_FILE, OnnxFormatError, OnnxSc
 from msvdd.score_graph import (
     AudioDecoder2d,
     AudioEncoder2d,
+    ExportLSTM,
     LogMel,
     PolyphaseUpsample,
     ScoreGraph,
@@ -213,27 +213,33 @@ def test_rewritten_graph_pieces_match_what_they_stand_for() -> None:
     assert torch.allclose(block_peak(err[:, :8819], 1, 7), err[:, :8813].reshape(3, 1259, -1).mean(2).amax(1))
 
 
+@pytest.mark.parametrize("layers", [1, 2])
+def test_export_lstm_is_the_lstm_it_replaces(layers: int) -> None:
+    torch.manual_seed(layers)
+    lstm = torch.nn.LSTM(12, 5, num_layers=layers, batch_first=True).eval()
+    x = torch.randn(3, 9, 12)
+    with torch.inference_mode():
+        out, state = ExportLSTM(lstm)(x)
+        assert state is None
+        assert torch.allclose(out, lstm(x)[0], rtol=0, atol=1e-6)  # the same arithmetic, gates reordered
+    for bad in (
+        torch.nn.LSTM(12, 5, bidirectional=True, batch_first=True),
+        torch.nn.LSTM(12, 5),  # time first
+        torch.nn.LSTM(12, 5, proj_size=2, batch_first=True),
+    ):
+        with pytest.raises(ValueError, match="unsupported LSTM"):
+            ExportLSTM(bad)
+
+
 def test_exported_lstms_start_from_zeros_and_are_squeezed(exported: Path) -> None:
-    """`simplify_lstm_glue` ran: no LSTM gets initial states built from the batch size, each one-directional
-    output goes straight into a Squeeze, and no Shape node is left for them."""
+    """Each LSTM layer is one ONNX LSTM node without initial states (ONNX Runtime starts from zeros), its
+    output goes straight into a Squeeze, and no Shape node computes anything for them."""
     graph = onnx.load(str(exported / ONNX_FILE)).graph
     lstms = [node for node in graph.node if node.op_type == "LSTM"]
     assert len(lstms) == 5  # log-mel encoder, two IMU encoder layers, two IMU decoder layers
     readers = {name: node.op_type for node in graph.node for name in node.input}
     assert all(len(node.input) == 4 and readers[node.output[0]] == "Squeeze" for node in lstms)
     assert not [node for node in graph.node if node.op_type == "Shape"]
-
-
-def test_simplify_lstm_glue_leaves_other_graphs_alone() -> None:
-    nodes = [helper.make_node("Relu", ["x"], ["h"]), helper.make_node("Neg", ["x"], ["unused"])]
-    nodes.append(helper.make_node("Abs", ["h"], ["y"]))
-    value = helper.make_tensor_value_info
-    graph = helper.make_graph(
-        nodes, "g", [value("x", TensorProto.FLOAT, [2])], [value("y", TensorProto.FLOAT, [2])]
-    )
-    model = helper.make_model(graph)
-    assert simplify_lstm_glue(model) == 1  # only the node nothing reads goes
-    assert [node.op_type for node in model.graph.node] == ["Relu", "Abs"]
 
 
 def test_export_refusals(

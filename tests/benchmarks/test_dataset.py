@@ -55,7 +55,8 @@ def test_collision_windows_hold_the_contact(tiny_dataset: Path) -> None:
 
 
 def test_same_seed_same_checksums(tiny_dataset: Path, tmp_path: Path) -> None:
-    again = ds.generate("tiny", 0, tmp_path / "again", workers=1, progress=False)
+    # the session's dataset was built in one process; this one by two worker processes
+    again = ds.generate("tiny", 0, tmp_path / "again", workers=2, progress=False)
     first = ds.open_dataset(tiny_dataset, verify=False).manifest
     second = ds.open_dataset(again).manifest
     assert first.episodes == second.episodes

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.errors import UserError
 from benchmarks.uncertainty import (
     BOOTSTRAP_REPLICATES,
     BOOTSTRAP_SEED,
@@ -55,7 +56,7 @@ SCORE_COLUMNS: tuple[str, ...] = ("window_id", "method", "score", "label", "kind
 """Columns of `scores.csv` the comparison reads."""
 
 
-class CompareError(ValueError):
+class CompareError(UserError):
     """Two runs cannot be compared (missing or malformed files, other datasets, no common method)."""
 
 

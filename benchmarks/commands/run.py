@@ -49,12 +49,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--train-seeds",
-        "--seeds",
-        dest="train_seeds",
         type=int,
         nargs="+",
         default=None,
-        help="training seeds of every method (default: the preset's; --seeds is the former name)",
+        help="training seeds of every method (default: the preset's)",
     )
     add_device_argument(p)
     add_progress_argument(p)

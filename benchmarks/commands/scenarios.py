@@ -9,7 +9,12 @@ from benchmarks.errors import check_seed
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=int, default=0, help="seed used to show each preset's drawn settings")
+    p.add_argument(
+        "--scenario-seed",
+        type=int,
+        default=0,
+        help="scenario seed each preset is drawn with for this listing (as `simulate --scenario-seed`)",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -19,10 +24,11 @@ def _run(args: argparse.Namespace) -> int:
     from sim.scenario import OBSTACLE_MASS, OBSTACLE_SIZES, TRANSIENT_HEIGHT
     from sim.world import SURFACES
 
-    check_seed(args.seed)
-    print(f"presets (seed {args.seed}; `msvdd-bench simulate --scenario NAME --seed N --out T.npz`):")
+    seed = check_seed(args.scenario_seed, "--scenario-seed")
+    usage = "msvdd-bench simulate --scenario NAME --scenario-seed N --out T.npz"
+    print(f"presets (scenario seed {seed}; `{usage}`):")
     for name, factory in sim.scenario_presets().items():
-        sc = factory(args.seed)
+        sc = factory(seed)
         extra = ""
         if sc.faults:
             f = sc.faults[0]
@@ -73,5 +79,5 @@ COMMAND = Command(
     help="list scenario presets, obstacle kinds, fault kinds and their parameters",
     add_arguments=_add_arguments,
     run=_run,
-    example="msvdd-bench scenarios --seed 3",
+    example="msvdd-bench scenarios --scenario-seed 3",
 )

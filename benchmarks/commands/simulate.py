@@ -18,10 +18,13 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="a named scenario preset (`msvdd-bench scenarios`) or a scenario TOML file (assets/scenarios/)",
     )
     p.add_argument(
-        "--seed",
+        "--scenario-seed",
         type=int,
         default=None,
-        help="scenario seed (a named preset's default 0; overrides the file's seed)",
+        help="scenario seed: with a named preset, the seed its scenario is drawn with (setting, obstacles, "
+        "route, transients, fault) and the simulation's own draws (surface roughness, sensor noise, rattle) "
+        "(default: 0); with a TOML file, replaces the file's `seed`, which seeds the simulation's draws only "
+        "(default: the file's)",
     )
     p.add_argument("--out", type=Path, required=True, help="where to write the trace (.npz)")
 
@@ -31,17 +34,16 @@ def _run(args: argparse.Namespace) -> int:
 
     import sim
 
-    if args.seed is not None:
-        check_seed(args.seed)
+    seed = None if args.scenario_seed is None else check_seed(args.scenario_seed, "--scenario-seed")
     if args.out.suffix != ".npz":
         raise UserError(f"--out = {str(args.out)!r} is invalid; allowed: a path ending in .npz")
     presets = sim.scenario_presets()
     if args.scenario in presets:
-        scenario = presets[args.scenario](0 if args.seed is None else args.seed)
+        scenario = presets[args.scenario](0 if seed is None else seed)
     elif args.scenario.endswith(".toml"):
         scenario = sim.Scenario.from_toml(Path(args.scenario))
-        if args.seed is not None:
-            scenario = scenario.replace(seed=args.seed)
+        if seed is not None:
+            scenario = scenario.replace(seed=seed)
     else:
         raise UserError(
             f"--scenario = {args.scenario!r} is unknown; allowed: a .toml file or one of {', '.join(presets)}"
@@ -102,7 +104,7 @@ COMMAND = Command(
     add_arguments=_add_arguments,
     run=_run,
     example=(
-        "msvdd-bench simulate --scenario collision_wall --seed 0 --out /tmp/collision.npz\n"
+        "msvdd-bench simulate --scenario collision_wall --scenario-seed 0 --out /tmp/collision.npz\n"
         "msvdd-bench simulate --scenario assets/scenarios/fault_bearing.toml --out /tmp/bearing.npz"
     ),
 )

@@ -18,7 +18,14 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="output audio file (.flac or .wav)")
     p.add_argument("--snr", type=float, default=6.0, help="robot-to-environment ratio, dB")
     p.add_argument("--stems", type=Path, default=None, help="also write one float WAV per source into DIR")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random draw in the render")
+    p.add_argument(
+        "--render-seed",
+        type=int,
+        default=0,
+        help="render seed: seeds every random draw of the audio render (each source's sound, the ambience, "
+        "the room, microphone noise), not the simulation (the trace's scenario seed fixed that); the same "
+        "trace, options and render seed give the same samples bit for bit",
+    )
     p.add_argument("--sample-rate", type=int, default=44100, help="output sample rate, Hz")
     p.add_argument("--no-ambience", action="store_true", help="robot sound only (no environment)")
 
@@ -34,7 +41,7 @@ def _run(args: argparse.Namespace) -> int:
         raise UserError(f"--out {out}: unsupported suffix {out.suffix!r}; allowed: {', '.join(FORMATS)}")
     if not math.isfinite(args.snr):
         raise UserError(f"--snr = {args.snr} is invalid; allowed: a finite number of dB")
-    check_seed(args.seed)
+    seed = check_seed(args.render_seed, "--render-seed")
     trace = Trace.load(args.trace)
     config = AudioConfig(
         sample_rate=args.sample_rate,
@@ -42,7 +49,7 @@ def _run(args: argparse.Namespace) -> int:
         ambience=not args.no_ambience,
         stems=args.stems is not None,
     )
-    audio = render(trace, config, args.seed)
+    audio = render(trace, config, seed)
     if args.stems is not None:
         stems_dir: Path = args.stems
         stems_dir.parent.mkdir(parents=True, exist_ok=True)

@@ -15,7 +15,7 @@ import pytest
 from sklearn.metrics import roc_auc_score
 
 from benchmarks.cli import _discover, build_parser, main
-from benchmarks.errors import FOREIGN_USER_ERRORS, is_user_error
+from benchmarks.errors import FOREIGN_USER_ERRORS, UserError, is_user_error
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -129,6 +129,9 @@ def test_a_negative_seed_exits_2_naming_the_field_value_and_range(
 
 
 def test_user_errors_are_known_by_type() -> None:
+    from benchmarks.regression import CompareError
+
+    assert issubclass(CompareError, UserError) and is_user_error(CompareError("bad input"))
     for module_name, class_name in FOREIGN_USER_ERRORS:  # msvdd, sim, synth_audio do not import benchmarks
         error = getattr(importlib.import_module(module_name), class_name)
         assert issubclass(error, Exception) and is_user_error(error("bad input")), class_name

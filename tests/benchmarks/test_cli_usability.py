@@ -49,6 +49,33 @@ def test_every_help_has_an_example_and_no_empty_default() -> None:
     assert "(default: 0)" in _subparsers()["train"].format_help()  # a meaningful default is still shown
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--scenario", "nominal_indoor", "--out", "x.npz", "--seed", "1"],
+        ["scenarios", "--seed", "1"],
+        ["synth", "--trace", "t.npz", "--out", "a.flac", "--seed", "1"],
+        ["run", "--out", "r", "--seeds", "0"],
+        ["demo", "--out", "r", "--seeds", "0"],
+    ],
+)
+def test_seed_flags_have_one_meaning_and_no_old_names(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--seed` is a dataset seed only (the scenario seed is `--scenario-seed`, the render seed
+    `--render-seed`), and `--seeds` is no alias of `--train-seeds`: argparse refuses the old names."""
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(argv)
+    assert exit_info.value.code == 2
+    assert f"error: unrecognized arguments: {argv[-2]} {argv[-1]}\n" in capsys.readouterr().err
+    parser = build_parser()
+    assert parser.parse_args(["run", "--out", "r", "--train-seeds", "0", "1"]).train_seeds == [0, 1]
+    assert parser.parse_args(["demo", "--out", "r", "--train-seeds", "2"]).train_seeds == [2]
+    assert parser.parse_args(["scenarios", "--scenario-seed", "3"]).scenario_seed == 3
+    synth = parser.parse_args(["synth", "--trace", "t.npz", "--out", "a.flac", "--render-seed", "4"])
+    assert synth.render_seed == 4
+
+
 def test_perf_stage_lists_every_stage() -> None:
     from benchmarks.commands.perf import stages
 

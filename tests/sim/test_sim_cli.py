@@ -13,7 +13,7 @@ from sim.robot import asset_path
 
 def test_simulate_preset_writes_a_loadable_trace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "t.npz"
-    assert main(["simulate", "--scenario", "fault_bearing", "--seed", "2", "--out", str(out)]) == 0
+    assert main(["simulate", "--scenario", "fault_bearing", "--scenario-seed", "2", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "fault      bearing" in text and "duration" in text and "distance" in text
     trace = Trace.load(out)
@@ -25,7 +25,7 @@ def test_simulate_preset_writes_a_loadable_trace(tmp_path: Path, capsys: pytest.
 def test_simulate_scenario_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "wall.npz"
     source = asset_path("scenarios/collision_wall.toml")
-    assert main(["simulate", "--scenario", source, "--seed", "9", "--out", str(out)]) == 0
+    assert main(["simulate", "--scenario", source, "--scenario-seed", "9", "--out", str(out)]) == 0
     trace = Trace.load(out)
     assert trace.seed == 9 and "wall" in trace.contacts.obstacle_kind
     assert "wall" in capsys.readouterr().out
@@ -35,7 +35,7 @@ def test_simulate_scenario_file(tmp_path: Path, capsys: pytest.CaptureFixture[st
     ("args", "message"),
     [
         (["--scenario", "nope"], "--scenario = 'nope' is unknown; allowed: a .toml file or one of nominal"),
-        (["--scenario", "nominal_indoor", "--seed", "-3"], "--seed = -3 is invalid"),
+        (["--scenario", "nominal_indoor", "--scenario-seed", "-3"], "--scenario-seed = -3 is invalid"),
         (["--scenario", "missing.toml"], "scenario file not found: missing.toml"),
     ],
 )
@@ -58,8 +58,9 @@ def test_simulate_refuses_bad_scenario_file(tmp_path: Path, capsys: pytest.Captu
 
 
 def test_scenarios_lists_presets_kinds_and_parameters(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["scenarios"]) == 0
+    assert main(["scenarios", "--scenario-seed", "3"]) == 0
     text = capsys.readouterr().out
+    assert "presets (scenario seed 3; `msvdd-bench simulate --scenario NAME --scenario-seed N" in text
     for word in (
         "collision_pedestrian",
         "fault_motor_degradation",

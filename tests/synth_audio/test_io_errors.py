@@ -99,23 +99,31 @@ def test_cli_synth_writes_audio_and_stems(tmp_path: Path, capsys: pytest.Capture
     trace_path = make_trace(1.0, 9.0, contact_events=contacts([0.5], [3.0])).save(tmp_path / "t.npz")
     out = tmp_path / "out" / "a.flac"
     stems = tmp_path / "stems"
-    code = main(["synth", "--trace", str(trace_path), "--out", str(out), "--snr", "0", "--stems", str(stems)])
+    argv = ["synth", "--trace", str(trace_path), "--out", str(out), "--snr", "0", "--stems", str(stems)]
+    code = main([*argv, "--render-seed", "1"])
     assert code == 0, capsys.readouterr().err
     assert read(out).samples.shape == (44100, 2)
     assert sorted(p.name for p in stems.iterdir())[:3] == ["ambience.wav", "electronics.wav", "faults.wav"]
 
 
-@pytest.mark.parametrize("case", ["nan", "no mic_pos", "material", "snr", "rate"])
+@pytest.mark.parametrize("case", ["nan", "no mic_pos", "material", "snr", "rate", "render seed"])
 def test_cli_synth_refuses_bad_input_and_writes_nothing(
     case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    trace = make_trace(0.5, 8.0) if case in ("snr", "rate") else _bad_traces()[case][0]
+    trace = make_trace(0.5, 8.0) if case in ("snr", "rate", "render seed") else _bad_traces()[case][0]
     trace_path = trace.save(tmp_path / "t.npz")
     out = tmp_path / "out.flac"
-    extra = {"snr": ["--snr", "nan"], "rate": ["--sample-rate", "8000"]}.get(case, [])
+    extra = {
+        "snr": ["--snr", "nan"],
+        "rate": ["--sample-rate", "8000"],
+        "render seed": ["--render-seed", "-1"],
+    }.get(case, [])
     args = ["synth", "--trace", str(trace_path), "--out", str(out), "--stems", str(tmp_path / "st"), *extra]
     assert main(args) == 2
-    assert "error" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "error" in err
+    if case == "render seed":
+        assert "--render-seed = -1 is invalid; allowed: an integer >= 0" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.npz"]
 
 

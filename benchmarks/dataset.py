@@ -31,6 +31,7 @@ from benchmarks.episode import (
     SIMULATED,
     EpisodeMeta,
     read_episode,
+    read_imu_signals,
     software_versions,
     write_episode,
 )
@@ -173,16 +174,18 @@ def plan_episodes(preset: Preset, seed: int) -> list[EpisodeSpec]:
                 category=category,
                 split=split,
                 seed=_episode_seed(seed, index),
-                unit_id=int(units[index % len(units)]),
                 snr_db=float(rng.uniform(*preset.snr_db)),
-                duration_s=duration,
-                environment=environment,
-                obstacle_kind=obstacle_kind,
-                fault_kind=fault_kind,
-                wheel=wheel,
-                severity=preset.severity,
-                transient_density=preset.transient_density,
-                surface=surface,
+                options=sim.ScenarioOptions(
+                    duration=duration,
+                    environment=environment,
+                    obstacle_kind=obstacle_kind,
+                    fault_kind=fault_kind,
+                    wheel=wheel,
+                    severity=preset.severity,
+                    unit_id=int(units[index % len(units)]),
+                    transient_density=preset.transient_density,
+                    surface=surface,
+                ),
                 drive_speed_scale=preset.drive_speed_scale,
                 approach_speed_scale=preset.approach_speed_scale,
             )
@@ -234,7 +237,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
     The folder is written beside its place and renamed into it, replacing a copy an earlier attempt of the
     same task left (the same spec always gives the same bytes), so a retried task is harmless.
     """
-    scenario = sim.draw_scenario(spec.seed, spec.category, spec.scenario_options())
+    scenario = sim.draw_scenario(spec.seed, spec.category, spec.options)
     scenario = scale_speeds(scenario, spec.drive_speed_scale, spec.approach_speed_scale)
     # Render what the file keeps, so that the audit's re-render from trace.npz reproduces this audio exactly.
     trace = sim.simulate(scenario).at_storage_precision()
@@ -246,7 +249,7 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         unit_id=spec.unit_id,
         seed=spec.seed,
         snr_db=spec.snr_db,
-        duration_s=spec.duration_s,
+        duration_s=spec.options.duration,
     )
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -311,8 +314,8 @@ def _window_rows(
     rows: list[WindowRow] = []
     dropped: list[DroppedWindow] = []
     for spec in specs:
-        with np.load(dataset / spec.episode_id / "imu.npz", allow_pickle=False) as imu:
-            label, sub_kind, wheel = imu["label"], imu["sub_kind"], imu["label_wheel"]
+        imu = read_imu_signals(dataset / spec.episode_id, ("label", "sub_kind", "label_wheel"))
+        label, sub_kind, wheel = imu["label"], imu["sub_kind"], imu["label_wheel"]
         hop = preset.train_hop_s if spec.split in ("train", "val") else preset.test_hop_s
         starts = window_starts(len(label) / IMU_RATE, hop)
         for start, lab in zip(starts, label_windows(label, sub_kind, wheel, starts), strict=True):

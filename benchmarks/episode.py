@@ -166,6 +166,12 @@ def read_trace(folder: Path) -> Trace:
     return Trace.load(Path(folder) / TRACE_FILE)
 
 
+def read_imu_signals(folder: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Only the named arrays of an episode's `imu.npz` (fields of `ImuArrays`), as stored."""
+    with np.load(Path(folder) / IMU_FILE, allow_pickle=False) as arrays:
+        return {name: arrays[name] for name in names}
+
+
 def read_trace_signals(folder: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     """Only the named arrays of an episode's `trace.npz`, as float64 (far faster than `read_trace`).
 
@@ -435,6 +441,10 @@ def write_imported_episode(
     return directory
 
 
+IMU_SIGNALS: tuple[str, ...] = ("time", "vel_z", "imu6", "label", "sub_kind", "label_wheel")
+"""The arrays of `imu.npz` (the fields of `ImuArrays`)."""
+
+
 @dataclass(frozen=True)
 class ImuArrays:
     """What `imu.npz` holds, at the IMU rate."""
@@ -502,8 +512,7 @@ def read_episode(directory: Path) -> Episode:
             f"{directory / META_FILE}: episode format_version {version}, this software reads {readable}"
         )
     audio = synth_audio.read(audio_file(directory))
-    with np.load(directory / IMU_FILE, allow_pickle=False) as imu:
-        arrays = {key: imu[key] for key in imu.files}
+    arrays = read_imu_signals(directory, IMU_SIGNALS)
     return Episode(
         path=directory,
         meta=EpisodeMeta(**meta_doc["episode"]),

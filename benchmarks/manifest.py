@@ -18,6 +18,7 @@ and a training budget of the former names (`LEGACY_SCALES`) reads as today's nam
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -52,7 +53,11 @@ class DatasetError(UserError):
 @dataclass(frozen=True)
 class EpisodeSpec:
     """One planned episode: enough to simulate and render it in any process (`benchmarks.dataset`
-    plans it; the manifest records it)."""
+    plans it; the manifest records it).
+
+    In the file the plan is one flat object: the fields below and the scenario options under the names
+    `_OPTION_KEYS` gives them, in the order of `_SPEC_KEYS`.
+    """
 
     episode_id: str
     """Folder name."""
@@ -62,44 +67,105 @@ class EpisodeSpec:
     """`train`, `val` or `test`."""
     seed: int
     """Seed of scenario and audio."""
-    unit_id: int
-    """Robot unit."""
     snr_db: float
     """Mix SNR, dB (drawn uniformly from the preset's `snr_db` range)."""
-    duration_s: float
-    """Length, s."""
-    environment: str | None
-    """`indoor`, `outdoor` or None (drawn by the scenario sampler)."""
-    obstacle_kind: str | None
-    """Obstacle for a collision episode."""
-    fault_kind: str | None
-    """Fault for a fault episode."""
-    wheel: int | None
-    """Faulty wheel for a fault episode."""
-    severity: tuple[float, float]
-    """Fault severity range."""
-    transient_density: float
-    """Benign transient density multiplier."""
-    surface: str | None = None
-    """Floor surface (None: drawn by the scenario sampler)."""
+    options: ScenarioOptions
+    """What `sim.draw_scenario` draws the episode's scenario with (before `scale_speeds`): its length, its
+    robot unit (always given), and the environment, surface, obstacle and fault kinds and wheel (None:
+    drawn by the scenario sampler), the fault severity range and the benign transient density. The robot
+    model is the default one (the manifest does not record it)."""
     drive_speed_scale: float = 1.0
     """Factor on the cruise speeds (`sim.random_scenarios.scale_speeds`)."""
     approach_speed_scale: float = 1.0
     """Factor on the speeds of the legs driven at an obstacle."""
 
-    def scenario_options(self) -> ScenarioOptions:
-        """What `sim.draw_scenario` draws the episode's scenario with (before `scale_speeds`)."""
-        return ScenarioOptions(
-            duration=self.duration_s,
-            environment=self.environment,
-            obstacle_kind=self.obstacle_kind,
-            fault_kind=self.fault_kind,
-            wheel=self.wheel,
-            severity=self.severity,
-            unit_id=self.unit_id,
-            transient_density=self.transient_density,
-            surface=self.surface,
-        )
+    def __post_init__(self) -> None:
+        """Refuse options the manifest cannot record: a unit left to draw, another robot model."""
+        if self.options.unit_id is None:
+            raise ValueError("field 'unit_id': a plan gives the robot unit")
+        if self.options.robot_model != ScenarioOptions.robot_model:
+            raise ValueError(
+                f"robot model {self.options.robot_model!r}: a plan drives the {ScenarioOptions.robot_model}"
+            )
+
+    @property
+    def unit_id(self) -> int:
+        """Robot unit (`options.unit_id`, which a plan always gives)."""
+        assert self.options.unit_id is not None  # __post_init__
+        return self.options.unit_id
+
+    def to_dict(self) -> dict[str, Any]:
+        """The plan as it is written: one flat object (`_SPEC_KEYS`)."""
+
+        def value(key: str) -> Any:
+            return getattr(self.options, _OPTION_KEYS[key]) if key in _OPTION_KEYS else getattr(self, key)
+
+        return {key: plain(value(key)) for key in _SPEC_KEYS}
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any], where: str) -> EpisodeSpec:
+        """Read a plan written by `to_dict` (`where`: the file and the entry, for messages); a missing,
+        ill-typed or unknown field is a `DatasetError` naming it."""
+        unknown = sorted(set(doc) - set(_SPEC_KEYS))
+        if unknown:
+            raise DatasetError(f"{where}: unknown field {unknown[0]!r}")
+        own_hints = typing.get_type_hints(cls)
+        option_hints = {**typing.get_type_hints(ScenarioOptions), "unit_id": int}
+        own: dict[str, Any] = {}
+        options: dict[str, Any] = {}
+        for key in _SPEC_KEYS:
+            if key not in doc:
+                if key not in _OPTIONAL_KEYS:
+                    raise DatasetError(f"{where}: missing field {key!r}")
+                continue
+            name = _OPTION_KEYS.get(key)
+            hint = own_hints[key] if name is None else option_hints[name]
+            value = read_value(doc[key], hint, f"{where}: field {key!r}", DatasetError)
+            if name is None:
+                own[key] = value
+            else:
+                options[name] = value
+        try:
+            return cls(**own, options=ScenarioOptions(**options))
+        except ValueError as exc:
+            raise DatasetError(f"{where}: {exc}") from exc
+
+
+_OPTION_KEYS: dict[str, str] = {
+    "unit_id": "unit_id",
+    "duration_s": "duration",
+    "environment": "environment",
+    "obstacle_kind": "obstacle_kind",
+    "fault_kind": "fault_kind",
+    "wheel": "wheel",
+    "severity": "severity",
+    "transient_density": "transient_density",
+    "surface": "surface",
+}
+"""A plan's keys in the file that hold its scenario options -> the `ScenarioOptions` field."""
+
+_SPEC_KEYS: tuple[str, ...] = (
+    "episode_id",
+    "category",
+    "split",
+    "seed",
+    "unit_id",
+    "snr_db",
+    "duration_s",
+    "environment",
+    "obstacle_kind",
+    "fault_kind",
+    "wheel",
+    "severity",
+    "transient_density",
+    "surface",
+    "drive_speed_scale",
+    "approach_speed_scale",
+)
+"""A plan's keys in the file, in the order they are written."""
+
+_OPTIONAL_KEYS: tuple[str, ...] = ("surface", "drive_speed_scale", "approach_speed_scale")
+"""Keys a plan may lack (written before they existed): read at their defaults."""
 
 
 @dataclass(frozen=True)
@@ -149,7 +215,7 @@ class ManifestEpisode:
 
     def to_dict(self) -> dict[str, Any]:
         """The entry as it is written (an SNR that is not known, NaN, as null: JSON has no NaN)."""
-        doc: dict[str, Any] = plain(self.spec)
+        doc = self.spec.to_dict()
         if math.isnan(self.spec.snr_db):
             doc["snr_db"] = None
         if self.recording is not None:
@@ -166,7 +232,7 @@ class ManifestEpisode:
         if "snr_db" in plan and plan["snr_db"] is None:
             plan["snr_db"] = math.nan  # an import's: not known
         return cls(
-            spec=read_record(EpisodeSpec, plan, where, DatasetError),
+            spec=EpisodeSpec.from_dict(plan, where),
             files=read_field(doc, "files", dict[str, str], where, DatasetError),
             recording=read_value(
                 doc.get("recording"), str | None, f"{where}: field 'recording'", DatasetError

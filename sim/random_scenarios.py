@@ -860,23 +860,30 @@ def scenario_presets() -> dict[str, Callable[[int], Scenario]]:
     """Named scenario factories (name -> factory taking a seed)."""
     presets: dict[str, Callable[[int], Scenario]] = {}
 
-    def make(name: str, category: str, **kwargs: object) -> Callable[[int], Scenario]:
+    def make(name: str, category: str, options: ScenarioOptions) -> Callable[[int], Scenario]:
         def factory(seed: int) -> Scenario:
-            sc = random_scenario(seed, category, duration=PRESET_DURATION, **kwargs)  # type: ignore[arg-type]
-            return sc.replace(name=name)
+            return draw_scenario(seed, category, options).replace(name=name)
 
-        factory.__doc__ = (
-            f"Preset {name}: {category} scenario ({', '.join(f'{k}={v}' for k, v in kwargs.items())})."
+        given = ", ".join(
+            f"{f.name}={getattr(options, f.name)}"
+            for f in dataclasses.fields(options)
+            if f.name != "duration" and getattr(options, f.name) != f.default
         )
+        factory.__doc__ = f"Preset {name}: {category} scenario ({given})."
         return factory
 
-    presets["nominal_indoor"] = make("nominal_indoor", "nominal", environment="indoor")
-    presets["nominal_outdoor"] = make("nominal_outdoor", "nominal", environment="outdoor")
-    presets["nominal_diff2"] = make("nominal_diff2", "nominal", environment="indoor", robot_model="diff2")
+    d = PRESET_DURATION
+    presets["nominal_indoor"] = make("nominal_indoor", "nominal", ScenarioOptions(d, environment="indoor"))
+    presets["nominal_outdoor"] = make("nominal_outdoor", "nominal", ScenarioOptions(d, environment="outdoor"))
+    presets["nominal_diff2"] = make(
+        "nominal_diff2", "nominal", ScenarioOptions(d, environment="indoor", robot_model="diff2")
+    )
     for kind in vocab.OBSTACLE_KINDS:
-        presets[f"collision_{kind}"] = make(f"collision_{kind}", "collision", obstacle_kind=kind)
+        presets[f"collision_{kind}"] = make(
+            f"collision_{kind}", "collision", ScenarioOptions(d, obstacle_kind=kind)
+        )
     for kind in vocab.FAULT_KINDS:
-        presets[f"fault_{kind}"] = make(f"fault_{kind}", "fault", fault_kind=kind)
+        presets[f"fault_{kind}"] = make(f"fault_{kind}", "fault", ScenarioOptions(d, fault_kind=kind))
     return presets
 
 

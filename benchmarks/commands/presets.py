@@ -19,7 +19,7 @@ def _run(args: argparse.Namespace) -> int:
     for name in names:
         preset = get_preset(name)
         specs = plan_episodes(preset, 0)
-        seconds = sum(s.duration_s for s in specs)
+        seconds = sum(s.options.duration for s in specs)
         print(f"{name:<6} {preset.description}")
         print(f"       {len(specs)} episodes, {seconds / 60:.1f} min of driving, methods at scale "
               f"{preset.method_scale!r}, seeds {list(preset.seeds)}")  # fmt: skip

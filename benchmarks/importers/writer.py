@@ -56,6 +56,7 @@ from benchmarks.manifest import (
 )
 from benchmarks.presets import Preset
 from msvdd.contract import IMU_RATE, WINDOW_S
+from sim.random_scenarios import ScenarioOptions
 from sim.vocab import COLLISION, LABELS, MECHANICAL, NORMAL, SUB_KINDS
 
 POOLS: tuple[str, ...] = ("auto", "fit", "train", "val", "test")
@@ -273,15 +274,8 @@ def _write_episode(
         category=category,
         split=split,
         seed=0,
-        unit_id=plan.unit_id,
         snr_db=math.nan,
-        duration_s=duration,
-        environment=None,
-        obstacle_kind=None,
-        fault_kind=None,
-        wheel=None,
-        severity=(0.0, 0.0),
-        transient_density=0.0,
+        options=ScenarioOptions(duration, unit_id=plan.unit_id, severity=(0.0, 0.0), transient_density=0.0),
     )
     return spec, rows
 
@@ -295,7 +289,7 @@ def _preset(layout: str, source: Path, config: ImportConfig, written: Sequence[_
         ]
 
     def mean_duration(items: list[_Written]) -> float:
-        return float(np.mean([w.spec.duration_s for w in items])) if items else 0.0
+        return float(np.mean([w.spec.options.duration for w in items])) if items else 0.0
 
     fit = of("train") + of("val")
     return Preset(

@@ -8,14 +8,16 @@ from pathlib import Path
 
 from benchmarks.dataset import EpisodeSpec, build_episode
 from benchmarks.perf.base import PerfStage
+from sim.random_scenarios import ScenarioOptions
 
 
 def _measure(quick: bool) -> dict[str, float]:
     duration = 10.0 if quick else 60.0
     specs = [
-        EpisodeSpec(f"perf-{category}", category, "test", 1234 + i, 0, 6.0, duration, "indoor",
-                    "wall" if category == "collision" else None, "bearing" if category == "fault" else None,
-                    1 if category == "fault" else None, (0.5, 1.0), 1.0)
+        EpisodeSpec(f"perf-{category}", category, "test", 1234 + i, 6.0, ScenarioOptions(
+            duration, environment="indoor", obstacle_kind="wall" if category == "collision" else None,
+            fault_kind="bearing" if category == "fault" else None, wheel=1 if category == "fault" else None,
+            severity=(0.5, 1.0), unit_id=0))
         for i, category in enumerate(("nominal", "collision", "fault"))
     ]  # fmt: skip
     simulated = 0.0
@@ -23,7 +25,7 @@ def _measure(quick: bool) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         for spec in specs:
             build_episode(spec, Path(tmp))
-            simulated += spec.duration_s
+            simulated += spec.options.duration
     elapsed = time.perf_counter() - started
     return {"generate_rtf": simulated / elapsed}
 

@@ -13,12 +13,15 @@ from benchmarks.episode import read_episode
 from benchmarks.methods import make, save_detector
 from benchmarks.perf.base import PerfStage
 from msvdd import preprocess
+from sim.random_scenarios import ScenarioOptions
 
 
 def _measure(quick: bool) -> dict[str, float]:
     duration = 10.0 if quick else 60.0
-    spec = EpisodeSpec("perf-fault", "fault", "test", 4321, 0, 6.0, duration, "indoor", None, "bearing", 1,
-                       (0.5, 1.0), 1.0)  # fmt: skip
+    options = ScenarioOptions(
+        duration, environment="indoor", fault_kind="bearing", wheel=1, severity=(0.5, 1.0), unit_id=0
+    )
+    spec = EpisodeSpec("perf-fault", "fault", "test", 4321, 6.0, options)
     from benchmarks.viz import log_episode
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -26,6 +26,7 @@ from benchmarks.manifest import (
     ManifestWindows,
 )
 from benchmarks.presets import get_preset
+from sim.random_scenarios import ScenarioOptions
 
 
 def _raw(dataset: Path) -> tuple[str, dict[str, Any]]:
@@ -62,9 +63,10 @@ def test_the_fingerprint_is_the_one_the_raw_manifest_gave(tiny_dataset: Path) ->
 
 def test_the_fingerprint_of_a_fixed_manifest_is_unchanged() -> None:
     """Pinned: the value the dict-based code gave for these checksums (a pure function of them)."""
+    options = ScenarioOptions(30.0, "indoor", severity=(0, 0), unit_id=0, transient_density=1)
     episodes = tuple(
         ManifestEpisode(
-            EpisodeSpec(name, "nominal", "train", 1, 0, 6.0, 30.0, "indoor", None, None, None, (0, 0), 1),
+            EpisodeSpec(name, "nominal", "train", 1, 6.0, options),
             {file: hashlib.sha256(f"{name}/{file}".encode()).hexdigest() for file in EPISODE_FILES},
         )
         for name in ("train-nominal-000", "test-fault-000")
@@ -107,6 +109,12 @@ def _load_error(tmp_path: Path, doc: dict[str, Any]) -> str:
         ),
         (lambda d: d.update(seed="0"), r"field 'seed': expected an integer, got \"0\""),
         (lambda d: d["episodes"][0].update(wheel=1.5), r"'wheel': expected an integer or null, got 1\.5"),
+        (lambda d: d["episodes"][0].pop("duration_s"), r"episodes\[0\] \(\S+\): missing field 'duration_s'"),
+        (lambda d: d["episodes"][0].update(unit_id=None), r"field 'unit_id': expected an integer, got null"),
+        (
+            lambda d: d["episodes"][0].update(robot_model="diff2"),
+            r"episodes\[0\] \(\S+\): unknown field 'robot_model'",
+        ),
         (lambda d: d["episodes"][0]["files"].update(x=1), r"field 'files'\['x'\]: expected a string, got 1"),
         (lambda d: d.update(modalities=["audio"]), r"'modalities': \['audio'\] in a generated dataset"),
         (lambda d: d.update(extra=1), r"manifest\.json: unknown field 'extra'"),
@@ -151,9 +159,8 @@ def test_a_format_2_manifest_reads_with_the_later_fields_at_their_defaults(tiny_
 
 
 def test_an_imported_episode_has_no_snr_and_names_its_recording() -> None:
-    spec = EpisodeSpec(
-        "test-fault-0000", "fault", "test", 0, 1, math.nan, 4.0, None, None, None, None, (0, 0), 0.0
-    )
+    options = ScenarioOptions(4.0, severity=(0, 0), unit_id=1, transient_density=0.0)
+    spec = EpisodeSpec("test-fault-0000", "fault", "test", 0, math.nan, options)
     entry = ManifestEpisode(spec, {"audio.flac": "0" * 64}, recording="fan/id_00/abnormal/00000000")
     doc = entry.to_dict()
     assert doc["snr_db"] is None and doc["recording"] == "fan/id_00/abnormal/00000000"

@@ -81,7 +81,7 @@ def test_a_two_point_sweep_writes_tables_and_plots_with_intervals(sweep: tuple[P
         for e in open_dataset(out / p["runs"][0]["folder"] / "dataset", verify=False).manifest.episodes
         if e.spec.category == "fault"
     ]
-    assert {e.severity for e in faults} == {(0.3, 0.3), (1.0, 1.0)}
+    assert {e.options.severity for e in faults} == {(0.3, 0.3), (1.0, 1.0)}
     text = (out / "sweep.md").read_text()
     assert "| severity | dataset seed | gaussian-early | audio-rms |" in text
     for key in ("auc", "auc_collision", "auc_mechanical"):
@@ -220,14 +220,14 @@ def test_domain_shift_presets_put_train_and_test_on_their_floors() -> None:
     tiny = get_preset("tiny")
     shifted = dataclasses.replace(tiny, train_surfaces=("tile", "carpet"), test_surfaces=("grass", "gravel"))
     plan = plan_episodes(shifted, 0)
-    assert {s.surface for s in plan if s.split != "test"} == {"tile", "carpet"}
-    assert {s.surface for s in plan if s.split == "test"} == {"grass", "gravel"}
+    assert {s.options.surface for s in plan if s.split != "test"} == {"tile", "carpet"}
+    assert {s.options.surface for s in plan if s.split == "test"} == {"grass", "gravel"}
     assert {s.category for s in plan if s.split == "test"} == {"nominal", "collision", "fault"}
     outdoor = dataclasses.replace(tiny, train_environments=("indoor",), test_environments=("outdoor",))
     plan = plan_episodes(outdoor, 0)
-    assert {s.environment for s in plan if s.split != "test"} == {"indoor"}
-    assert {s.environment for s in plan if s.split == "test"} == {"outdoor"}
-    assert plan_episodes(tiny, 0)[-1].environment is None  # unrestricted: the sampler draws as before
+    assert {s.options.environment for s in plan if s.split != "test"} == {"indoor"}
+    assert {s.options.environment for s in plan if s.split == "test"} == {"outdoor"}
+    assert plan_episodes(tiny, 0)[-1].options.environment is None  # unrestricted: the sampler draws as before
     with pytest.raises(UserError, match="obstacle kind 'door' stands only indoor"):
         plan_episodes(dataclasses.replace(outdoor, obstacle_kinds=("door",)), 0)
     with pytest.raises(UserError, match="no floor is in both test_environments"):

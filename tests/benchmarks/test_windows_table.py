@@ -62,8 +62,8 @@ def test_plans_are_deterministic_and_cover_every_kind(name: str) -> None:
     assert plan == plan_episodes(preset, 3)
     assert plan != plan_episodes(preset, 4)
     assert len({s.episode_id for s in plan}) == len(plan)
-    assert {s.obstacle_kind for s in plan if s.category == "collision"} == set(preset.obstacle_kinds)
-    assert {(s.fault_kind, s.wheel) for s in plan if s.category == "fault"} == {
+    assert {s.options.obstacle_kind for s in plan if s.category == "collision"} == set(preset.obstacle_kinds)
+    assert {(s.options.fault_kind, s.options.wheel) for s in plan if s.category == "fault"} == {
         (f, w) for f in preset.fault_kinds for w in preset.wheels
     }
     train = [s for s in plan if s.split in ("train", "val")]
@@ -77,7 +77,7 @@ def test_plans_are_deterministic_and_cover_every_kind(name: str) -> None:
 def test_nominal_training_and_test_sequences_each_cover_every_surface(name: str) -> None:
     plan = plan_episodes(get_preset(name), 0)
     for splits in (("train",), ("test",)):
-        floors = {s.surface for s in plan if s.category == "nominal" and s.split in splits}
+        floors = {s.options.surface for s in plan if s.category == "nominal" and s.split in splits}
         assert floors == set(SURFACES), splits
 
 
@@ -85,7 +85,7 @@ def test_paper_preset_has_the_papers_size() -> None:
     plan = plan_episodes(get_preset("paper"), 0)
     nominal = [s for s in plan if s.category == "nominal"]
     assert sum(s.split in ("train", "val") for s in nominal) == 48
-    hours = sum(s.duration_s for s in nominal) / 3600
+    hours = sum(s.options.duration for s in nominal) / 3600
     assert hours == pytest.approx(3.0, abs=0.1)
 
 
@@ -95,11 +95,13 @@ def test_many_short_test_nominal_sequences_cover_every_floor_and_unit(name: str)
     plan = plan_episodes(preset, 0)
     test = [s for s in plan if s.category == "nominal" and s.split == "test"]
     assert len(test) >= 36
-    floors = [(s.environment, s.surface) for s in test]
+    floors = [(s.options.environment, s.options.surface) for s in test]
     assert set(floors) == set(nominal_floors())
     assert min(floors.count(f) for f in set(floors)) >= 5  # every floor several times, not once
     for floor in set(floors):  # every floor is driven by every test unit
-        assert {s.unit_id for s in test if (s.environment, s.surface) == floor} == set(preset.test_units)
+        assert {s.unit_id for s in test if (s.options.environment, s.options.surface) == floor} == set(
+            preset.test_units
+        )
 
 
 @pytest.mark.parametrize("name", preset_names())

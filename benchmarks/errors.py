@@ -25,9 +25,8 @@ class OutputExistsError(UserError, FileExistsError):
 
 
 FOREIGN_USER_ERRORS: tuple[tuple[str, str], ...] = (
-    ("benchmarks.regression", "CompareError"),
     ("msvdd.contract", "WindowError"),
-    ("msvdd.model", "ModelFormatError"),
+    ("msvdd.contract", "ModelFormatError"),
     ("sim.scenario", "ScenarioError"),
     ("sim.trace", "TraceError"),
     ("synth_audio.config", "AudioError"),

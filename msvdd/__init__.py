@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from msvdd.config import MSVDDConfig
-    from msvdd.contract import Detector, NotFittedError, WindowError, Windows
+    from msvdd.contract import Detector, ModelFormatError, NotFittedError, WindowError, Windows
     from msvdd.frontend import InputNormalizer
     from msvdd.mcd import MCDError, MCDResult, SingularCovarianceError, mahalanobis, min_cov_det
-    from msvdd.model import MSVDD, ModelFormatError
+    from msvdd.model import MSVDD
     from msvdd.network import (
         AudioDecoder,
         AudioEncoder,
@@ -31,10 +31,10 @@ if TYPE_CHECKING:
 
 _HOME = {
     "msvdd.config": ("MSVDDConfig",),
-    "msvdd.contract": ("Detector", "NotFittedError", "WindowError", "Windows"),
+    "msvdd.contract": ("Detector", "ModelFormatError", "NotFittedError", "WindowError", "Windows"),
     "msvdd.frontend": ("InputNormalizer",),
     "msvdd.mcd": ("MCDError", "MCDResult", "SingularCovarianceError", "mahalanobis", "min_cov_det"),
-    "msvdd.model": ("MSVDD", "ModelFormatError"),
+    "msvdd.model": ("MSVDD",),
     "msvdd.network": (
         "AudioDecoder",
         "AudioEncoder",

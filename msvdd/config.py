@@ -115,18 +115,21 @@ class MSVDDConfig:
                 raise ValueError(f"batch_size {self.batch_size} with s={self.s}: {err}") from err
 
     @classmethod
-    def paper(cls, **overrides: Any) -> Self:
-        """The paper's setting: d = s = 32, batch 64, 40 epochs, lr 1e-4 cosine, alpha (1, 1, 0.001)."""
+    def full(cls, **overrides: Any) -> Self:
+        """The `full` training scale, the paper's setting: d = s = 32, batch 64, 40 epochs, lr 1e-4 cosine,
+        alpha (1, 1, 0.001)."""
         return cls(**overrides)
 
     @classmethod
-    def quick(cls, **overrides: Any) -> Self:
-        """The paper's network with 20 epochs at lr 1e-3: about a minute on 2 CPU cores for ~500 windows."""
+    def short(cls, **overrides: Any) -> Self:
+        """The `short` training scale: the paper's network with 20 epochs at lr 1e-3 (about a minute on 2 CPU
+        cores for ~500 windows)."""
         return dataclasses.replace(cls(epochs=20, lr=1e-3), **overrides)
 
     @classmethod
-    def tiny(cls, **overrides: Any) -> Self:
-        """A small, fast setting for tests and smoke runs (seconds on a CPU core for ~100 windows)."""
+    def smoke(cls, **overrides: Any) -> Self:
+        """The `smoke` training scale: a small, fast setting for tests and smoke runs (seconds on a CPU core
+        for ~100 windows)."""
         base = cls(d=8, s=8, batch_size=32, epochs=5, lr=1e-3, mcd_trials=10, progress=False)
         return dataclasses.replace(base, **overrides)
 

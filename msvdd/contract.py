@@ -28,6 +28,13 @@ class WindowError(ValueError):
     """A window batch has the wrong shape, rate or values; the message says which."""
 
 
+class ModelFormatError(ValueError):
+    """A model file or folder is not of the expected model, is of another format version, or has a field
+    missing or malformed: an M-SVDD model file (`msvdd.model.MSVDD.load`) or a benchmark method's model
+    folder or file (`benchmarks.methods`). The message names the file and, where one is at fault, the
+    field."""
+
+
 @dataclass(frozen=True)
 class Windows:
     """A batch of aligned audio/IMU windows."""

@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Detector, NotFittedError, WindowError, Windows, check_windows
+from msvdd.contract import Detector, ModelFormatError, NotFittedError, WindowError, Windows, check_windows
 from msvdd.frontend import InputNormalizer
 from msvdd.losses import (
     batch_statistics,
@@ -46,10 +46,6 @@ _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 """Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
-
-
-class ModelFormatError(ValueError):
-    """A model file is not an M-SVDD file of the supported format version."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +74,7 @@ class _Module(nn.Module):
 
 
 class MSVDD(Detector):
-    """Mahalanobis SVDD with audio-IMU fusion. `MSVDD(MSVDDConfig.paper()).fit(train, val)`."""
+    """Mahalanobis SVDD with audio-IMU fusion. `MSVDD(MSVDDConfig.full()).fit(train, val)`."""
 
     def __init__(self, config: MSVDDConfig | None = None) -> None:
         self.config = config or MSVDDConfig()
@@ -351,7 +347,8 @@ class MSVDD(Detector):
 
         Raises:
             FileNotFoundError: no such file.
-            ModelFormatError: not an M-SVDD model file, or another format version.
+            ModelFormatError: not an M-SVDD model file, another format version, or a field missing or
+                malformed (the message names the file and the field).
         """
         source = Path(path)
         if not source.is_file():
@@ -370,6 +367,16 @@ class MSVDD(Detector):
                 f"{source} has model format version {version}; "
                 f"this code reads versions 1 and {FORMAT_VERSION}"
             )
+        try:
+            return cls._from_payload(payload, version, device)
+        except KeyError as err:
+            raise ModelFormatError(f"{source}: field {err} is missing") from err
+        except (TypeError, ValueError) as err:
+            raise ModelFormatError(f"{source}: a field is malformed ({err})") from err
+
+    @classmethod
+    def _from_payload(cls, payload: dict[str, Any], version: int, device: str | None) -> Self:
+        """The model a checked `save` payload of format `version` holds (a missing field: KeyError)."""
         cfg_dict = dict(payload["config"])
         if device is not None:
             cfg_dict["device"] = device

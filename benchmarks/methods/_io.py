@@ -12,13 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.errors import InputNotFoundError, UserError
+from benchmarks.errors import InputNotFoundError
+from msvdd.contract import ModelFormatError
 
 _HEADER_KEY = "__header__"
-
-
-class ModelFileError(UserError):
-    """A model file is missing, malformed, or of another method or format version."""
 
 
 @contextlib.contextmanager
@@ -77,12 +74,12 @@ def load_npz(
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ModelFileError: the file is not such a model file, or has another kind or format version.
+        ModelFormatError: the file is not such a model file, or has another kind or format version.
     """
     p = Path(path)
     if not p.is_file():
         raise InputNotFoundError(f"model file {p} does not exist")
-    not_ours = ModelFileError(
+    not_ours = ModelFormatError(
         f"{p} is not a msvdd-bench model file (expected a {kind!r} model: an .npz archive with a JSON header)"
     )
     try:
@@ -94,9 +91,9 @@ def load_npz(
     if not isinstance(header, dict):
         raise not_ours
     if header.get("kind") != kind:
-        raise ModelFileError(f"model file {p} holds a {header.get('kind')!r} model, expected {kind!r}")
+        raise ModelFormatError(f"model file {p} holds a {header.get('kind')!r} model, expected {kind!r}")
     if header.get("format_version") != version:
-        raise ModelFileError(
+        raise ModelFormatError(
             f"model file {p} has format_version {header.get('format_version')}; this code reads {version}"
         )
     return header, arrays

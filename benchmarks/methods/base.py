@@ -10,12 +10,13 @@ import numpy as np
 
 from benchmarks.errors import UserError
 from benchmarks.methods._io import load_npz, save_npz
-from msvdd.contract import Detector, NotFittedError
+from msvdd.contract import Detector, ModelFormatError, NotFittedError
 
 SCALES: tuple[str, ...] = ("smoke", "short", "full")
 """Training budgets every method understands: smoke (seconds: tests), short (minutes: `make demo`), full
 (the paper's budget). Named apart from the dataset presets (tiny, quick, paper, ...), whose `method_scale`
 says which budget each uses by default."""
+
 
 def check_scale(scale: str) -> str:
     """Return `scale` if it is one of `SCALES`, else raise a UserError naming the allowed values."""
@@ -58,8 +59,21 @@ class WindowDetector(Detector):
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:
-        """Read a file written by `save`; refuses another kind or format version."""
+        """Read a file written by `save`.
+
+        Raises:
+            FileNotFoundError: the file does not exist.
+            ModelFormatError: not such a model file, another kind or format version, a field missing or
+                malformed, or a model that does not rebuild; the message names the file (and the field).
+        """
         header, arrays = load_npz(path, cls.kind, cls.format_version)
-        detector = cls._from_state(header, arrays)
-        detector._set_threshold(float(header["threshold"]), str(header.get("threshold_source", "train")))
+        try:
+            detector = cls._from_state(header, arrays)
+            detector._set_threshold(float(header["threshold"]), str(header.get("threshold_source", "train")))
+        except ModelFormatError as err:
+            raise ModelFormatError(f"model file {path}: {err}") from err
+        except KeyError as err:
+            raise ModelFormatError(f"model file {path}: field {err} is missing") from err
+        except (TypeError, ValueError) as err:
+            raise ModelFormatError(f"model file {path}: a field is malformed ({err})") from err
         return detector

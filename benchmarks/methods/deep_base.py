@@ -2,7 +2,7 @@
 
 Every deep baseline is `msvdd.network.FusionNet` (the paper's CRNN audio encoder, LSTM IMU encoder,
 fusion and decoders) plus a small method-specific head and loss, trained by `msvdd.training.train_network`
-with the same budget as M-SVDD at each scale (`MSVDDConfig.tiny()`, `.quick()`, `.paper()`). Inputs are
+with the same budget as M-SVDD at each scale (`MSVDDConfig.smoke()`, `.short()`, `.full()`). Inputs are
 z-scored with `msvdd.frontend.InputNormalizer` statistics of the training windows and smoothed per window as
 M-SVDD does. All random draws (initialisation, dropout, sampling, shuffling) happen inside a forked torch RNG
 seeded from the method's seed, so the same seed gives the same model bit for bit. Model files are `.npz`
@@ -33,9 +33,9 @@ SCORE_CHUNK = 256
 
 
 def scale_config(scale: str, seed: int, **overrides: Any) -> MSVDDConfig:
-    """M-SVDD's budget at `scale` (smoke, short, full: `MSVDDConfig.tiny`, `.quick`, `.paper`)."""
+    """M-SVDD's budget at `scale` (smoke, short, full: `MSVDDConfig.smoke`, `.short`, `.full`)."""
     check_scale(scale)
-    factory = {"smoke": MSVDDConfig.tiny, "short": MSVDDConfig.quick, "full": MSVDDConfig.paper}[scale]
+    factory = {"smoke": MSVDDConfig.smoke, "short": MSVDDConfig.short, "full": MSVDDConfig.full}[scale]
     return factory(seed=seed, **overrides)
 
 

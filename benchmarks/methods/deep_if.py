@@ -20,11 +20,10 @@ import numpy as np
 import torch
 from sklearn.ensemble import IsolationForest
 
-from benchmarks.methods._io import ModelFileError
 from benchmarks.methods.base import WindowDetector, check_scale
 from benchmarks.methods.deep_base import SCORE_CHUNK, scale_config
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Windows
+from msvdd.contract import ModelFormatError, Windows
 from msvdd.frontend import InputNormalizer
 from msvdd.network import FusionNet
 from msvdd.training import resolve_device
@@ -43,7 +42,7 @@ class DeepIFConfig:
 
     @classmethod
     def for_scale(cls, seed: int, scale: str) -> DeepIFConfig:
-        """tiny 4 x 25 trees, quick 8 x 16, paper 16 x 12 (Xu et al. use many small forests)."""
+        """smoke 4 x 25 trees, short 8 x 16, full 16 x 12 (Xu et al. use many small forests)."""
         check_scale(scale)
         reps, trees = {"smoke": (4, 25), "short": (8, 16), "full": (16, 12)}[scale]
         return cls(n_representations=reps, n_estimators=trees, seed=seed)
@@ -152,7 +151,7 @@ class DeepIsolationForest(WindowDetector):
         n = detector.config.n_representations
         detector._grow([arrays[f"emb{r}"] for r in range(n)])
         if not all(np.array_equal(detector.train_scores[r], arrays[f"train_scores{r}"]) for r in range(n)):
-            raise ModelFileError(
+            raise ModelFormatError(
                 "refitting the saved Deep Isolation Forest did not reproduce its training scores "
                 "(was it saved with another scikit-learn version?); retrain it"
             )

@@ -1,6 +1,6 @@
 """M-SVDD and its ablations (paper, Tables II-IV) in the registry.
 
-Each entry is `msvdd.model.MSVDD` with `MSVDDConfig.tiny()`, `.quick()` or `.paper()` and one switch:
+Each entry is `msvdd.model.MSVDD` with `MSVDDConfig.smoke()`, `.short()` or `.full()` and one switch:
 audio only, IMU only, without reconstruction, Euclidean (without M-SVDD), the fusion variants, and the latent
 dimension s. Two budget rules keep every variant trainable:
 

@@ -13,9 +13,9 @@ from importlib import metadata
 from pathlib import Path
 
 from benchmarks.errors import InputNotFoundError, UserError, check_seed
-from benchmarks.methods._io import ModelFileError, atomic_path, write_text_atomic
+from benchmarks.methods._io import atomic_path, write_text_atomic
 from benchmarks.methods.base import check_scale
-from msvdd.contract import Detector
+from msvdd.contract import Detector, ModelFormatError
 
 FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive", "external")
 """Method families: M-SVDD and its ablations, deep baselines, shallow baselines, the audit's reference
@@ -111,7 +111,7 @@ def make(name: str, *, seed: int, scale: str, device: str = "cpu", progress: boo
 
     `device` (cpu, cuda, auto) is where the torch methods train and score; the others ignore it.
     `progress` turns the training progress bar of the torch methods on or off (None: the scale's
-    default, off at tiny); methods without a bar ignore it.
+    default, off at smoke); methods without a bar ignore it.
     """
     method = spec(name)
     check_scale(scale)
@@ -174,12 +174,14 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
 
     Raises:
         FileNotFoundError: `method.json` or the model file is missing (the message names the path).
-        ModelFileError: not a model folder, a file that is not ours, another format version, an unknown
-            method, or a malformed `method.json`; always one line naming the file and what was expected.
+        ModelFormatError: not a model folder, a file that is not ours, another format version, an unknown
+            method, or a malformed `method.json` or model file (the method's own `load` raises it for the
+            model file, as `msvdd.model.MSVDD.load` and every baseline do); one line naming the file and
+            what was expected.
     """
     folder = Path(directory)
     if folder.is_file():
-        raise ModelFileError(
+        raise ModelFormatError(
             f"{folder} is not a msvdd-bench model folder (expected a folder written by `msvdd-bench train`, "
             f"holding {METHOD_FILE} and {MODEL_FILE})"
         )
@@ -189,36 +191,25 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
     try:
         info = json.loads(meta_path.read_text(encoding="utf-8"))
     except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
-        raise ModelFileError(
+        raise ModelFormatError(
             f"{meta_path} is not a msvdd-bench model file (expected the JSON that `msvdd-bench train` writes)"
         ) from exc
     if not isinstance(info, dict):
-        raise ModelFileError(f"{meta_path} is not a msvdd-bench model file (expected a JSON object)")
+        raise ModelFormatError(f"{meta_path} is not a msvdd-bench model file (expected a JSON object)")
     version = info.get("format_version")
     if version != METHOD_FORMAT_VERSION:
-        raise ModelFileError(
+        raise ModelFormatError(
             f"{meta_path} has format_version {version}; this code reads {METHOD_FORMAT_VERSION}"
         )
     name = info.get("method")
     if not isinstance(name, str):
-        raise ModelFileError(f"{meta_path} names no method (got {name!r})")
+        raise ModelFormatError(f"{meta_path} names no method (got {name!r})")
     try:
         method = spec(name)
     except ValueError as exc:
-        raise ModelFileError(f"{meta_path} names method {name!r}, which cannot be built: {exc}") from exc
+        raise ModelFormatError(f"{meta_path} names method {name!r}, which cannot be built: {exc}") from exc
     model_path = folder / str(info.get("model_file", MODEL_FILE))
     if not model_path.is_file():
         raise InputNotFoundError(f"{model_path} does not exist (named by {meta_path})")
-    try:
-        detector: Detector = method.cls.load(model_path)
-    except ModelFileError:
-        raise  # one line naming the file: not ours, or another kind or format version
-    except (ValueError, KeyError, EOFError) as exc:
-        text = str(exc)
-        if isinstance(exc, ValueError) and "\n" not in text and str(model_path) in text:
-            raise ModelFileError(text) from exc  # the loader's own one-line reason (e.g. a format version)
-        raise ModelFileError(  # a library's long message (torch's advice on weights_only): not for users
-            f"{model_path} is not a msvdd-bench model file (expected the {name!r} model that "
-            "`msvdd-bench train` writes)"
-        ) from exc
+    detector: Detector = method.cls.load(model_path)
     return name, detector

@@ -29,9 +29,8 @@ from sklearn.ensemble import IsolationForest
 from sklearn.svm import OneClassSVM
 
 from benchmarks.features import FeatureConfig, window_features
-from benchmarks.methods._io import ModelFileError
 from benchmarks.methods.base import WindowDetector, check_scale
-from msvdd.contract import Windows
+from msvdd.contract import ModelFormatError, Windows
 
 MODELS: tuple[str, ...] = ("iforest", "ocsvm", "svdd")
 """Shallow model kinds."""
@@ -59,7 +58,7 @@ class ShallowConfig:
 
     @classmethod
     def for_scale(cls, model: str, fusion: str, seed: int, scale: str) -> ShallowConfig:
-        """The budget of each scale: tiny (tests), quick, paper."""
+        """The budget of each scale: smoke (tests), short, full."""
         check_scale(scale)
         trees = {"smoke": 50, "short": 100, "full": 200}[scale]
         rows = {"smoke": 300, "short": 1500, "full": 3000}[scale]
@@ -130,14 +129,14 @@ class _Block:
         block = cls(config, arrays[f"{prefix}mean"], arrays[f"{prefix}std"])
         block.train_scores = arrays[f"{prefix}train_scores"]
         if f"{prefix}support" in arrays:
-            raise ModelFileError(
+            raise ModelFormatError(
                 f"this {config.model} model was saved by the former hand-written SVDD solver, which was "
                 "replaced by scikit-learn's one-class SVM (the same dual); retrain it"
             )
         stored = block.train_scores
         block._fit_model(arrays[f"{prefix}train_x"])
         if not np.array_equal(block.train_scores, stored):
-            raise ModelFileError(
+            raise ModelFormatError(
                 f"refitting the saved {config.model} did not reproduce its training scores "
                 "(was it saved with another scikit-learn version?); retrain it"
             )

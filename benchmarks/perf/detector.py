@@ -57,12 +57,12 @@ def _threads(n: int) -> Iterator[None]:
 
 def _fitted_model(n: int, **overrides: object) -> MSVDD:
     train, _ = toy_windows(n, 0, seed=0)
-    return MSVDD(MSVDDConfig.paper(epochs=1, progress=False, val_fraction=0.0, **overrides)).fit(train)
+    return MSVDD(MSVDDConfig.full(epochs=1, progress=False, val_fraction=0.0, **overrides)).fit(train)
 
 
 def _train_rate(quick: bool) -> float:
     n = 128 if quick else 640
-    model = MSVDD(MSVDDConfig.paper(epochs=1, progress=False, val_fraction=0.0))
+    model = MSVDD(MSVDDConfig.full(epochs=1, progress=False, val_fraction=0.0))
     train, _ = toy_windows(n, 0, seed=1)
     cfg = model.config
     model.normalizer, tensors = InputNormalizer.fit_tensors(
@@ -187,7 +187,7 @@ def measure(quick: bool) -> dict[str, float]:
     one = toy_windows(1, 0, seed=2)[0]
     return {
         "train_windows_per_s": train_rate,
-        "paper_train_minutes_2cpu": PAPER_TRAIN_WINDOWS * MSVDDConfig.paper().epochs / train_rate / 60.0,
+        "paper_train_minutes_2cpu": PAPER_TRAIN_WINDOWS * MSVDDConfig.full().epochs / train_rate / 60.0,
         "infer_ms_per_window": ms_one,
         "infer_windows_per_s": rate,
         **_onnx_figures(model, "", quick, one),

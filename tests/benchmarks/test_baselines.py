@@ -14,9 +14,9 @@ from sklearn.svm import OneClassSVM
 
 from benchmarks import methods
 from benchmarks.methods import naive
-from benchmarks.methods._io import ModelFileError
 from benchmarks.methods.deep import DAGMM_RIDGE, _center, gmm_energy, gmm_parameters
 from benchmarks.methods.shallow import ShallowConfig, ShallowDetector
+from msvdd.contract import ModelFormatError
 from msvdd.synthetic import toy_windows
 
 
@@ -79,7 +79,7 @@ def test_model_of_the_former_svdd_solver_is_refused(tmp_path: Path) -> None:
     arrays["b0_support"] = arrays["b0_train_x"][:3]
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)
-    with pytest.raises(ModelFileError, match="former hand-written SVDD solver"):
+    with pytest.raises(ModelFormatError, match="former hand-written SVDD solver"):
         ShallowDetector.load(path)
 
 
@@ -116,7 +116,7 @@ def test_refit_that_does_not_reproduce_training_scores_is_refused(tmp_path: Path
     arrays["b0_train_scores"] = arrays["b0_train_scores"] + 1e-9
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)
-    with pytest.raises(ModelFileError, match="did not reproduce"):
+    with pytest.raises(ModelFormatError, match="did not reproduce"):
         ShallowDetector.load(path)
 
 
@@ -148,13 +148,13 @@ def test_registry_errors(tmp_path: Path) -> None:
     assert info["method"] == "audio-rms" and "numpy" in info["versions"]
     info["format_version"] = 99
     (folder / "method.json").write_text(json.dumps(info))
-    with pytest.raises(ModelFileError, match="format_version 99"):
+    with pytest.raises(ModelFormatError, match="format_version 99"):
         methods.load_detector(folder)
     methods.save_detector(det, "audio-rms", folder)
     (folder / "model.bin").unlink()
     with pytest.raises(FileNotFoundError, match=r"model\.bin"):
         methods.load_detector(folder)
-    with pytest.raises(ModelFileError, match="'audio-rms' model, expected 'imu-kurtosis'"):
+    with pytest.raises(ModelFormatError, match="'audio-rms' model, expected 'imu-kurtosis'"):
         det.save(tmp_path / "x.npz")
         naive.IMUKurtosis.load(tmp_path / "x.npz")
 

@@ -13,6 +13,7 @@ import pytest
 
 from benchmarks import methods
 from benchmarks.cli import main
+from msvdd.contract import ModelFormatError
 
 MODULE = "msvdd_bench_test_external_detectors"
 """A module name no other test uses (imported modules and resolved names are cached per process)."""
@@ -157,5 +158,5 @@ def test_a_saved_model_whose_module_is_gone_is_refused(
     info = json.loads((out / "method.json").read_text())
     info["method"] = "gone_module_xyz:MeanAudioEnergy"
     (out / "method.json").write_text(json.dumps(info))
-    with pytest.raises(methods.registry.ModelFileError, match="cannot import module 'gone_module_xyz'"):
+    with pytest.raises(ModelFormatError, match="cannot import module 'gone_module_xyz'"):
         methods.load_detector(out)

@@ -27,4 +27,4 @@ def toy_test() -> tuple[Windows, np.ndarray]:
 @pytest.fixture(scope="session")
 def small_model(toy_train: Windows) -> MSVDD:
     """A briefly trained model (2 epochs): enough for contract, persistence and streaming checks."""
-    return MSVDD(MSVDDConfig.tiny(epochs=2)).fit(toy_train)
+    return MSVDD(MSVDDConfig.smoke(epochs=2)).fit(toy_train)

@@ -134,7 +134,7 @@ def test_streaming_scorer_takes_the_onnx_backend(
 
 def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> None:
     train, _ = toy_windows(48, 0, seed=0)
-    model = MSVDD(MSVDDConfig.tiny(epochs=1, val_fraction=0.0)).fit(train)  # waveform, z-velocity, mean Rec
+    model = MSVDD(MSVDDConfig.smoke(epochs=1, val_fraction=0.0)).fit(train)  # waveform, z-velocity, mean Rec
     manifest = export_onnx(model, tmp_path / "paper", ExportOptions(example_windows=3, check_windows=4))
     assert manifest.inputs == ("audio", "imu") and manifest.parity_max_rel <= RTOL
     scorer = OnnxScorer.load(tmp_path / "paper")
@@ -162,7 +162,7 @@ def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> Non
 def test_score_graph_reproduces_msvdd_score_for_every_variant(overrides: dict[str, object]) -> None:
     """The graph that is exported, run in torch: every ablation and front end gives MSVDD.score."""
     train, _ = toy_windows(48, 0, seed=0)
-    model = MSVDD(MSVDDConfig.tiny(epochs=1, val_fraction=0.0, **overrides)).fit(train)
+    model = MSVDD(MSVDDConfig.smoke(epochs=1, val_fraction=0.0, **overrides)).fit(train)
     batch, _ = toy_windows(3, 3, seed=2)
     graph = ScoreGraph(model).eval()
     with torch.inference_mode():
@@ -264,6 +264,6 @@ def test_export_refusals(
     with pytest.raises(FileNotFoundError, match=MANIFEST_FILE):
         OnnxScorer.load(tmp_path)
     with pytest.raises(NotFittedError):
-        export_onnx(MSVDD(MSVDDConfig.tiny()), tmp_path / "unfitted")
+        export_onnx(MSVDD(MSVDDConfig.smoke()), tmp_path / "unfitted")
     with pytest.raises(ValueError, match="example_windows"):
         ExportOptions(example_windows=1)

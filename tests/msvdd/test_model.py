@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -10,15 +11,15 @@ import torch
 from sklearn.metrics import roc_auc_score
 
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Detector, WindowError, Windows
-from msvdd.model import FORMAT_VERSION, MSVDD, ModelFormatError, NotFittedError
+from msvdd.contract import Detector, ModelFormatError, WindowError, Windows
+from msvdd.model import FORMAT_VERSION, MSVDD, NotFittedError
 from msvdd.synthetic import toy_windows
 
 
 def test_separates_toy_anomalies(toy_test: tuple[Windows, np.ndarray]) -> None:
     # The paper's network size (d = s = 32, MCD on batches of 64), 5 short epochs.
     train, _ = toy_windows(192, 0, seed=0)
-    cfg = MSVDDConfig.tiny(d=32, s=32, batch_size=64, val_fraction=0.2)
+    cfg = MSVDDConfig.smoke(d=32, s=32, batch_size=64, val_fraction=0.2)
     model = MSVDD(cfg).fit(train)
     batch, labels = toy_test
     scores = model.score(batch)
@@ -88,8 +89,24 @@ def test_load_refuses_other_format_version(small_model: MSVDD, tmp_path: Path) -
         MSVDD.load(tmp_path / "missing.pt")
 
 
+def test_load_names_the_file_and_a_missing_or_malformed_field(small_model: MSVDD, tmp_path: Path) -> None:
+    path = tmp_path / "model.pt"
+    small_model.save(path)
+    payload = torch.load(path, weights_only=True)
+    del payload["mu"]
+    torch.save(payload, path)
+    with pytest.raises(ModelFormatError, match=f"{re.escape(str(path))}: field 'mu' is missing"):
+        MSVDD.load(path)
+    small_model.save(path)
+    payload = torch.load(path, weights_only=True)
+    payload["config"]["epochs"] = 0
+    torch.save(payload, path)
+    with pytest.raises(ModelFormatError, match=f"{re.escape(str(path))}: a field is malformed .*epochs"):
+        MSVDD.load(path)
+
+
 def test_same_seed_same_scores(toy_train: Windows, toy_test: tuple[Windows, np.ndarray]) -> None:
-    cfg = MSVDDConfig.tiny(epochs=1)
+    cfg = MSVDDConfig.smoke(epochs=1)
     a = MSVDD(cfg).fit(toy_train).score(toy_test[0])
     b = MSVDD(cfg).fit(toy_train).score(toy_test[0])
     np.testing.assert_array_equal(a, b)
@@ -106,7 +123,7 @@ def test_same_seed_same_scores(toy_train: Windows, toy_test: tuple[Windows, np.n
     ],
 )
 def test_ablations_train_and_score(overrides: dict[str, object], toy_train: Windows) -> None:
-    model = MSVDD(MSVDDConfig.tiny(epochs=1, **overrides)).fit(toy_train)
+    model = MSVDD(MSVDDConfig.smoke(epochs=1, **overrides)).fit(toy_train)
     scores = model.score(toy_train.subset(slice(0, 10)))
     assert np.all(np.isfinite(scores)) and np.std(scores) > 0
     if overrides.get("use_reconstruction") is False:
@@ -116,13 +133,13 @@ def test_ablations_train_and_score(overrides: dict[str, object], toy_train: Wind
 def test_too_few_windows() -> None:
     few, _ = toy_windows(20, 0, seed=3)
     with pytest.raises(WindowError, match="batch_size=32"):
-        MSVDD(MSVDDConfig.tiny()).fit(few)
+        MSVDD(MSVDDConfig.smoke()).fit(few)
 
 
 def test_validation_too_small_for_its_mcd_trains_without_it() -> None:
     some, _ = toy_windows(40, 0, seed=3)
     with pytest.warns(UserWarning, match="too few for the validation MCD in s=16"):
-        model = MSVDD(MSVDDConfig.tiny(s=16, val_fraction=0.2)).fit(some)
+        model = MSVDD(MSVDDConfig.smoke(s=16, val_fraction=0.2)).fit(some)
     assert model.config.val_fraction == 0.0
     assert model.threshold_source_ == "train"
     assert model.threshold_ == np.quantile(model.score(some), 0.95)
@@ -132,7 +149,7 @@ def test_bad_input_errors(small_model: MSVDD) -> None:
     with pytest.raises(WindowError, match="Windows"):
         small_model.score(np.zeros((2, 8820, 2)))  # type: ignore[arg-type]
     with pytest.raises(NotFittedError):
-        MSVDD(MSVDDConfig.tiny()).score(toy_windows(2, 0, seed=0)[0])
+        MSVDD(MSVDDConfig.smoke()).score(toy_windows(2, 0, seed=0)[0])
 
 
 def test_config_validation() -> None:
@@ -146,8 +163,8 @@ def test_config_validation() -> None:
         MSVDDConfig(quantile=1.5)
     with pytest.raises(ValueError, match="unknown MSVDDConfig fields: bogus"):
         MSVDDConfig.from_dict({"bogus": 1})
-    assert MSVDDConfig.from_dict(MSVDDConfig.paper().to_dict()) == MSVDDConfig.paper()
-    assert MSVDDConfig.paper().epochs == 40 and MSVDDConfig.paper().alpha == (1.0, 1.0, 0.001)
+    assert MSVDDConfig.from_dict(MSVDDConfig.full().to_dict()) == MSVDDConfig.full()
+    assert MSVDDConfig.full().epochs == 40 and MSVDDConfig.full().alpha == (1.0, 1.0, 0.001)
 
 
 def test_reads_format_version_1_files(
@@ -184,7 +201,7 @@ def test_front_ends_train_save_and_load(
     toy_test: tuple[Windows, np.ndarray],
     tmp_path: Path,
 ) -> None:
-    cfg = MSVDDConfig.tiny(epochs=1, audio_frontend=audio_frontend, imu_input=imu_input)
+    cfg = MSVDDConfig.smoke(epochs=1, audio_frontend=audio_frontend, imu_input=imu_input)
     model = MSVDD(cfg).fit(toy_train)
     scores = model.score(toy_test[0])
     assert np.all(np.isfinite(scores)) and np.std(scores) > 0
@@ -195,13 +212,13 @@ def test_front_ends_train_save_and_load(
 def test_all_imu_axes_need_imu6(toy_train: Windows) -> None:
     bare = Windows(audio=toy_train.audio, imu=toy_train.imu)
     with pytest.raises(WindowError, match="imu6"):
-        MSVDD(MSVDDConfig.tiny(epochs=1, imu_input="all")).fit(bare)
+        MSVDD(MSVDDConfig.smoke(epochs=1, imu_input="all")).fit(bare)
 
 
 def test_peak_reconstruction_score_is_in_units_of_training_means(
     toy_train: Windows, toy_test: tuple[Windows, np.ndarray]
 ) -> None:
-    cfg = MSVDDConfig.tiny(
+    cfg = MSVDDConfig.smoke(
         epochs=1, audio_frontend="logmel", imu_input="all", rec_score="peak", w=1.0, val_fraction=0.0
     )
     model = MSVDD(cfg).fit(toy_train)

@@ -17,7 +17,7 @@ def _inputs(n: int = 3, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
 
 def test_shapes_and_token_sequences() -> None:
     torch.manual_seed(0)
-    cfg = MSVDDConfig.tiny(d=8, s=6)
+    cfg = MSVDDConfig.smoke(d=8, s=6)
     out = FusionNet(cfg)(*_inputs())
     assert out.z.shape == (3, 6)
     assert out.audio_tokens is not None and out.audio_tokens.shape == (3, AUDIO_TOKENS, 8)
@@ -30,7 +30,7 @@ def test_shapes_and_token_sequences() -> None:
 
 def test_cross_attention_mixes_modalities() -> None:
     torch.manual_seed(0)
-    net = FusionNet(MSVDDConfig.tiny()).eval()
+    net = FusionNet(MSVDDConfig.smoke()).eval()
     audio, imu = _inputs()
     _, imu2 = _inputs(seed=1)
     with torch.no_grad():
@@ -57,7 +57,7 @@ def test_attention_weights_are_not_trivial() -> None:
 @pytest.mark.parametrize("fusion", ["concat", "sum", "product"])
 def test_fusion_variants(fusion: str) -> None:
     torch.manual_seed(0)
-    out = FusionNet(MSVDDConfig.tiny(fusion=fusion))(*_inputs())
+    out = FusionNet(MSVDDConfig.smoke(fusion=fusion))(*_inputs())
     assert out.z.shape == (3, 8)
     assert out.fused_a is None
 
@@ -68,14 +68,14 @@ def test_fusion_variants(fusion: str) -> None:
 )
 def test_modality_ablations(kw: dict[str, bool], has_audio: bool, has_imu: bool) -> None:
     torch.manual_seed(0)
-    out = FusionNet(MSVDDConfig.tiny(**kw))(*_inputs())
+    out = FusionNet(MSVDDConfig.smoke(**kw))(*_inputs())
     assert (out.audio_rec is not None) == has_audio
     assert (out.imu_rec is not None) == has_imu
     assert out.z.shape == (3, 8)
 
 
 def test_without_reconstruction_has_no_decoders() -> None:
-    net = FusionNet(MSVDDConfig.tiny(use_reconstruction=False))
+    net = FusionNet(MSVDDConfig.smoke(use_reconstruction=False))
     assert net.audio_decoder is None and net.imu_decoder is None
 
 
@@ -86,7 +86,7 @@ def test_bad_fusion() -> None:
 
 def test_spectrogram_front_end_and_all_imu_axes_shapes() -> None:
     torch.manual_seed(0)
-    cfg = MSVDDConfig.tiny(d=8, s=6, audio_frontend="logmel", imu_input="all")
+    cfg = MSVDDConfig.smoke(d=8, s=6, audio_frontend="logmel", imu_input="all")
     logmel = torch.randn(3, 2, LOGMEL_FRAMES, LOGMEL_N_MELS)
     out = FusionNet(cfg)(logmel, torch.randn(3, 400, IMU_ALL_CHANNELS))
     assert out.z.shape == (3, 6)
@@ -100,7 +100,7 @@ def test_log_mel_tokens_are_causal_in_time_only_through_the_lstm() -> None:
     # A change in the last frame cannot change an earlier token (convolutions see +-1 frame, the LSTM runs
     # forward): the k-th token reads frames <= k + 3 only.
     torch.manual_seed(0)
-    cfg = MSVDDConfig.tiny(d=8, s=6, audio_frontend="logmel")
+    cfg = MSVDDConfig.smoke(d=8, s=6, audio_frontend="logmel")
     net = FusionNet(cfg)
     x = torch.randn(1, 2, LOGMEL_FRAMES, LOGMEL_N_MELS)
     y = x.clone()

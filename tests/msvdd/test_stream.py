@@ -26,7 +26,7 @@ def _signals(rng: np.random.Generator, seconds: float) -> tuple[np.ndarray, np.n
 
 
 def test_streaming_equals_batch_for_log_mel_and_all_imu_axes(toy_train: Windows) -> None:
-    model = MSVDD(MSVDDConfig.tiny(epochs=1, audio_frontend="logmel", imu_input="all")).fit(toy_train)
+    model = MSVDD(MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all")).fit(toy_train)
     audio, imu, imu6 = _signals(np.random.default_rng(1), 5.0)
     scorer = StreamingScorer(model, hop_s=0.5)
     with pytest.raises(WindowError, match="imu6 chunk"):

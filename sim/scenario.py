@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from sim import vocab
+from sim.trace import STRUCK_MASS
 
 ROBOT_MODELS: tuple[str, ...] = ("skid4", "diff2")
 """Robot models shipped in assets/: four-wheel skid steer and two wheels with casters."""
@@ -69,8 +70,9 @@ OBSTACLE_SIZES: dict[str, tuple[float, float, float]] = {
 }
 """Default box half-extents (x, y, z) of each obstacle kind, m."""
 
-OBSTACLE_MASS: dict[str, float] = {"box": 4.0, "luggage": 14.0}
-"""Obstacle kinds that are free bodies (pushed when hit) and their mass, kg; the others are fixed."""
+OBSTACLE_MASS: dict[str, float] = {kind: STRUCK_MASS[kind] for kind in ("box", "luggage")}
+"""Obstacle kinds that are free bodies (pushed when hit) and their mass, kg (`sim.trace.STRUCK_MASS`); the
+others are fixed (a pedestrian is moved kinematically)."""
 
 TRANSIENT_HEIGHT: dict[str, float] = {
     "seam": 0.004,

@@ -133,6 +133,13 @@ BEARING_CONTACT_ANGLE = 0.0
 IMBALANCE_ME = 0.03
 """Eccentric mass x radius of an imbalance fault at severity 1, kg m (`FaultRecord.severity` scales it)."""
 
+# What a contact strikes, by `ContactEvents.obstacle_kind`: the physics simulates boxes and luggage as free
+# bodies of this mass (`sim.scenario.OBSTACLE_MASS`), the audio bounds what a hit can exchange by the reduced
+# mass with the robot (`synth_audio.impacts.impact_impulse`).
+STRUCK_MASS: dict[str, float] = {"box": 4.0, "luggage": 14.0, "pedestrian": 70.0}
+"""Obstacles that give way when hit and their mass, kg (free bodies, and a person who steps back); the
+others are fixed."""
+
 
 @dataclass(frozen=True)
 class FaultRecord:

@@ -38,9 +38,6 @@ FLOAT32_FIELDS: tuple[str, ...] = (
 )
 """Sampled signals stored as float32 (format 2)."""
 
-DERIVED_FIELDS: tuple[str, ...] = ("time", "imu_time", "wheel_angle", "mic_pos")
-"""Fields left out of a format-2 file when they follow their law (see the module docstring)."""
-
 ANGLE_START = "wheel_angle_start"
 """Key of the (W,) float64 first row of `wheel_angle` when the rest is derived."""
 

@@ -66,9 +66,6 @@ fraction of a rigid obstacle's, and its contact is long."""
 
 BUMPER_CONTACT_S = 0.006
 """Contact time of the robot's rubber bumper at 1 m/s, s: in series with every struck material."""
-STRUCK_MASS: dict[str, float] = {"box": 4.0, "luggage": 14.0, "pedestrian": 70.0}
-"""Obstacles that give way when hit and their mass, kg (free bodies, and a person who steps back); the
-others are fixed. The reduced mass with the robot's bounds what a hit can exchange (`impact_impulse`)."""
 
 ROBOT_BODY = Material((230, 640, 1450, 2900), (0.1, 0.08, 0.05, 0.04), (0.5, 1.0, 0.7, 0.35), 0.002, 0.0, 0.5)
 """The robot's own chassis, excited by every hit (collisions and benign bumps alike)."""

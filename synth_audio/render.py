@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from sim.trace import RobotInfo, Trace
+from sim.trace import STRUCK_MASS, RobotInfo, Trace
 from synth_audio import ambience as amb
 from synth_audio import nearfield as nf
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
@@ -25,7 +25,7 @@ from synth_audio.drive import Drive, build_drive, reference_torque
 from synth_audio.dsp import add_at, bed_pool, noise_bed, rms, white
 from synth_audio.electronics import FAN_DB, fan_sound, unit_fan
 from synth_audio.faults import fault_sound
-from synth_audio.impacts import STRUCK_MASS, impact, impact_impulse, scrape
+from synth_audio.impacts import impact, impact_impulse, scrape
 from synth_audio.motor import motor_wheel, pwm_carrier
 from synth_audio.reverb import DECIMATION, Room
 from synth_audio.rolling import SURFACES, chassis_rattle, rolling_wheel

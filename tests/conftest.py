@@ -20,7 +20,7 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     """Fail a grouped test when `--dist loadgroup` did not keep its `xdist_group` on one worker: the groups
     exist because their tests share a costly session fixture (a Ray instance, an ONNX export, a sweep)."""
     grouped = item.get_closest_marker("xdist_group") is not None
-    if grouped and item.config.getvalue("loadgroup") and "@" not in item.nodeid:
+    if grouped and getattr(item.config.option, "loadgroup", False) and "@" not in item.nodeid:
         pytest.fail(
             f"pytest {pytest.__version__} with this pytest-xdist ignores xdist_group (the test id has no "
             "group suffix); install the tested versions: pip install -c constraints.txt -e '.[dev]'",
@@ -39,7 +39,7 @@ def tiny_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def tiny_model(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """M-SVDD at the `tiny` scale trained on `tiny_dataset`; the saved model folder."""
+    """M-SVDD at the `smoke` scale trained on `tiny_dataset`; the saved model folder."""
     from benchmarks.dataset import open_dataset
     from benchmarks.pipeline import train_method
 

@@ -17,6 +17,10 @@ parser does not import the registry and torch; a test checks that they agree).""
 EXECUTORS: tuple[str, ...] = ("local", "ray")
 """`--executor` choices; the same as `benchmarks.executor.EXECUTORS` (a test checks that they agree)."""
 
+SCALES: tuple[str, ...] = ("smoke", "short", "full")
+"""`--scale` values, the training budgets; the same as `benchmarks.methods.base.SCALES` (a test checks that
+they agree; the methods check the value, naming the allowed ones)."""
+
 
 @dataclass(frozen=True)
 class Command:
@@ -34,6 +38,37 @@ class Command:
     """Longer text shown by `msvdd-bench NAME --help` (defaults to `help`)."""
     example: str = ""
     """One or two command lines, one a line, shown under "example:" by `msvdd-bench NAME --help`."""
+
+
+def add_dataset_arguments(p: argparse.ArgumentParser, preset_default: str | None, seed_default: str) -> None:
+    """`--preset` and `--seed`, the dataset preset and the dataset seed: the one meaning of both flags in
+    every command (`preset_default` None: a given dataset decides; `seed_default`: how the default reads)."""
+    preset_help = (
+        f"default: {preset_default}" if preset_default else "default: quick; with --data, the dataset's"
+    )
+    p.add_argument(
+        "--preset",
+        default=preset_default,
+        help=f"dataset preset, see `msvdd-bench presets` ({preset_help})",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0 if preset_default else None,
+        help=f"dataset seed: the same preset and seed give the same checksums (default: {seed_default})",
+    )
+
+
+def add_scale_argument(
+    p: argparse.ArgumentParser | argparse._ArgumentGroup,
+    default: str | None,
+    what: str,
+    default_text: str = "",
+) -> None:
+    """`--scale`: a training budget, one of `SCALES` (`what`: whose budget; `default_text`: how a None default
+    reads)."""
+    suffix = f" ({default_text})" if default_text else ""
+    p.add_argument("--scale", default=default, help=f"{what}: {', '.join(SCALES)}{suffix}")
 
 
 def add_progress_argument(p: argparse.ArgumentParser) -> None:

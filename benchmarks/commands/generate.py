@@ -6,12 +6,11 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from benchmarks.command import Command, add_executor_arguments, add_progress_argument
+from benchmarks.command import Command, add_dataset_arguments, add_executor_arguments, add_progress_argument
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--preset", default="quick", help="dataset preset (see `msvdd-bench presets`)")
-    p.add_argument("--seed", type=int, default=0, help="dataset seed (same preset and seed, same checksums)")
+    add_dataset_arguments(p, "quick", "0")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--out", type=Path, help="dataset folder to create (must not exist)")
     where.add_argument(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks.command import Command, add_progress_argument
+from benchmarks.command import Command, add_progress_argument, add_scale_argument
 
 _LAYOUTS = ("folder", "mimii", "windows")  # benchmarks.importers.LAYOUTS, kept here so --help stays light
 
@@ -50,11 +50,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="folder, mimii: the rate every audio file must have, Hz (default: any, resampled); "
         "windows: the rate of the audio windows (default 4410)",
     )
-    shared.add_argument(
-        "--scale",
-        default="short",
-        help="training budget `train` uses on this dataset by default (smoke, short, full)",
-    )
+    add_scale_argument(shared, "short", "training budget `train` uses on this dataset by default")
     folder = p.add_argument_group("folder layout")
     folder.add_argument(
         "--imu-columns",

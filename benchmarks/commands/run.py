@@ -7,19 +7,19 @@ import contextlib
 import sys
 from pathlib import Path
 
-from benchmarks.command import Command, add_device_argument, add_executor_arguments, add_progress_argument
+from benchmarks.command import (
+    Command,
+    add_dataset_arguments,
+    add_device_argument,
+    add_executor_arguments,
+    add_progress_argument,
+    add_scale_argument,
+)
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by `run` and `demo`."""
-    p.add_argument(
-        "--preset",
-        default=None,
-        help="dataset preset, see `msvdd-bench presets` (default: quick; with --data, the dataset's)",
-    )
-    p.add_argument(
-        "--seed", type=int, default=None, help="dataset seed (default: 0; with --data, the dataset's)"
-    )
+    add_dataset_arguments(p, None, "0; with --data, the dataset's")
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
     p.add_argument(
         "--methods",
@@ -44,9 +44,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         "recorded in the report",
     )
     add_executor_arguments(p, what="the episodes of a generated dataset are built")
-    p.add_argument(
-        "--scale", default=None, help="training budget: smoke, short or full (default: the dataset preset's)"
-    )
+    add_scale_argument(p, None, "training budget", "default: the dataset preset's")
     p.add_argument(
         "--train-seeds",
         type=int,

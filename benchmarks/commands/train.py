@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from benchmarks.command import Command, add_device_argument, add_progress_argument
+from benchmarks.command import Command, add_device_argument, add_progress_argument, add_scale_argument
 from benchmarks.errors import OutputExistsError, check_seed
 
 
@@ -23,9 +23,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         default=0,
         help="training seed (initial weights, batches), not the dataset's",
     )
-    p.add_argument(
-        "--scale", default=None, help="training budget: smoke, short or full (default: the dataset preset's)"
-    )
+    add_scale_argument(p, None, "training budget", "default: the dataset preset's")
     add_device_argument(p)
     add_progress_argument(p)
 

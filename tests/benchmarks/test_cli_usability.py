@@ -15,7 +15,7 @@ from typing import NoReturn
 import pytest
 
 from benchmarks.cli import build_parser, main
-from benchmarks.command import DEVICES
+from benchmarks.command import DEVICES, SCALES
 
 HEAVY = ("torch", "mujoco", "sklearn", "scipy", "rerun", "matplotlib", "benchmarks.methods", "sim")
 
@@ -87,9 +87,10 @@ def test_perf_stage_lists_every_stage() -> None:
 
 
 def test_device_and_no_progress_where_training_runs() -> None:
+    from benchmarks.methods.base import SCALES as METHOD_SCALES
     from benchmarks.methods.registry import DEVICES as REGISTRY_DEVICES
 
-    assert DEVICES == REGISTRY_DEVICES
+    assert DEVICES == REGISTRY_DEVICES and SCALES == METHOD_SCALES
     parser = build_parser()
     required = {
         "train": ["--data", "d", "--method", "m", "--out", "o"],

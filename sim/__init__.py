@@ -10,7 +10,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "disable")
 
 from sim.envs import DiffDriveEnv, make_dm_env, make_env, register_envs
-from sim.random_scenarios import ScenarioOptions, draw_scenario, random_scenario, scenario_presets
+from sim.random_scenarios import ScenarioOptions, draw_scenario, scenario_presets
 from sim.rollout import simulate
 from sim.scenario import (
     Fault,
@@ -59,7 +59,6 @@ __all__ = [
     "draw_scenario",
     "make_dm_env",
     "make_env",
-    "random_scenario",
     "scenario_presets",
     "simulate",
 ]

@@ -25,7 +25,7 @@ from sim.engine import CONTROL_STEPS, Engine
 from sim.events import MERGE_GAP, extend_runs, labels
 from sim.faults import fault_record
 from sim.imu import ImuNoise, decimate, decimation_factor, imu_noise
-from sim.random_scenarios import random_scenario
+from sim.random_scenarios import ScenarioOptions, draw_scenario
 from sim.rollout import steps_for
 from sim.scenario import Scenario
 from sim.vocab import SUB_KINDS
@@ -60,7 +60,11 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
             seed: seed of the default scenario.
             max_wheel_speed: wheel speed of an action of 1, rad/s.
         """
-        self.scenario = scenario if scenario is not None else random_scenario(seed, "nominal", duration=30.0)
+        self.scenario = (
+            scenario
+            if scenario is not None
+            else draw_scenario(seed, "nominal", ScenarioOptions(duration=30.0))
+        )
         self.world = build_world(self.scenario)
         self.engine = Engine(self.world, self.scenario)
         self.max_wheel_speed = float(max_wheel_speed)

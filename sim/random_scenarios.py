@@ -33,7 +33,7 @@ from sim.scenario import (
 )
 
 CATEGORIES: tuple[str, ...] = ("nominal", "collision", "fault")
-"""Scenario categories of `random_scenario`."""
+"""Scenario categories of `draw_scenario`."""
 
 MAX_LEG = 4.5
 """Longest leg of a wandering route, m (shorter legs mean more turns)."""
@@ -165,61 +165,17 @@ def _check_surface(surface: str | None, environment: str | None) -> None:
         )
 
 
-def random_scenario(
-    seed: int,
-    category: str,
-    *,
-    duration: float,
-    environment: str | None = None,
-    obstacle_kind: str | None = None,
-    fault_kind: str | None = None,
-    wheel: int | None = None,
-    severity: tuple[float, float] = (0.3, 1.0),
-    unit_id: int | None = None,
-    transient_density: float = 1.0,
-    robot_model: str = "skid4",
-    surface: str | None = None,
-) -> Scenario:
-    """A valid randomised scenario of a category; every draw depends only on the arguments.
-
-    The same as `draw_scenario(seed, category, ScenarioOptions(duration, ...))`.
+def draw_scenario(seed: int, category: str, options: ScenarioOptions) -> Scenario:
+    """A valid randomised scenario of a category drawn with `options`; every draw depends only on the
+    arguments.
 
     Args:
         seed: seed of every draw (also the scenario's seed).
         category: `nominal` (a route with turns, stops, back-outs, emergency stops, near misses and benign
             transients), `collision` (the same driving, whose first leg meets an unseen obstacle of
-            `obstacle_kind`), or `fault` (the same driving with one fault of `fault_kind` whose onset is
-            inside the episode).
-        duration: episode length, s.
-        environment: indoor or outdoor (when None, drawn among the obstacle kind's environments,
-            `OBSTACLE_ENVIRONMENTS`: doors and desks indoors, curbs outdoors).
-        obstacle_kind: kind to collide with (collision; random when None).
-        fault_kind: fault kind (fault; random when None).
-        wheel: faulty wheel (random when None).
-        severity: (low, high) range of the fault severity.
-        unit_id: robot unit (random 0..7 when None).
-        transient_density: transients per 8 s of driving (0 = none).
-        robot_model: skid4 or diff2.
-        surface: floor surface (random among the environment's when None); must belong to the
-            environment (`sim.vocab.INDOOR_SURFACES`, `OUTDOOR_SURFACES`).
-    """
-    options = ScenarioOptions(
-        duration=duration,
-        environment=environment,
-        obstacle_kind=obstacle_kind,
-        fault_kind=fault_kind,
-        wheel=wheel,
-        severity=severity,
-        unit_id=unit_id,
-        transient_density=transient_density,
-        robot_model=robot_model,
-        surface=surface,
-    )
-    return draw_scenario(seed, category, options)
-
-
-def draw_scenario(seed: int, category: str, options: ScenarioOptions) -> Scenario:
-    """A valid randomised scenario of a category (see `random_scenario`) drawn with `options`.
+            `options.obstacle_kind`), or `fault` (the same driving with one fault of `options.fault_kind`
+            whose onset is inside the episode).
+        options: the episode's length and what is given rather than drawn (`ScenarioOptions`).
 
     The draws come in a fixed order from one generator seeded by the seed and category: the setting
     (obstacle kind, environment, surface, arena, unit), the obstacles, the route and the robot's driving,
@@ -897,7 +853,7 @@ def scale_speeds(scenario: Scenario, drive: float = 1.0, approach: float = 1.0) 
     `drive` scales every forward leg that does not drive at an obstacle; `approach` scales the legs that do
     (a collision episode's hit and every near miss). Speeds are capped at `MAX_WHEEL_SPEED`; back-out legs
     and the reflex keep their speeds. A near miss keeps its margin: its safety stop distance is planned
-    again for the new speed (braking at `BRAKE_DECEL`, as `random_scenario` plans it). Factors of 1 return
+    again for the new speed (braking at `BRAKE_DECEL`, as `draw_scenario` plans it). Factors of 1 return
     the scenario unchanged (the same object).
     """
     low, high = SPEED_SCALE_RANGE

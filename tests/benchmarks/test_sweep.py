@@ -17,7 +17,7 @@ from benchmarks.errors import UserError
 from benchmarks.presets import get_preset
 from benchmarks.sweeps.spec import AXES, load_spec, parse_spec, shipped_specs
 from sim import vocab
-from sim.random_scenarios import BRAKE_DECEL, random_scenario, scale_speeds
+from sim.random_scenarios import BRAKE_DECEL, ScenarioOptions, draw_scenario, scale_speeds
 from sim.scenario import MAX_WHEEL_SPEED, ScenarioError
 
 METHODS = ("gaussian-early", "audio-rms")
@@ -235,7 +235,9 @@ def test_domain_shift_presets_put_train_and_test_on_their_floors() -> None:
 
 
 def test_speed_factors_scale_cruise_and_obstacle_legs_and_keep_near_miss_margins() -> None:
-    scenario = random_scenario(11, "collision", duration=40.0, obstacle_kind="wall", surface=None)
+    scenario = draw_scenario(
+        11, "collision", ScenarioOptions(duration=40.0, obstacle_kind="wall", surface=None)
+    )
     assert scale_speeds(scenario) is scenario
     faster = scale_speeds(scenario, drive=1.5, approach=0.5)
     pairs = list(zip(scenario.route.waypoints, faster.route.waypoints, strict=True))

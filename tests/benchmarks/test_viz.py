@@ -407,7 +407,8 @@ def test_3d_view_follows_the_robot_and_labels_only_robot_and_struck_obstacle(rec
     tyres = [p for p in shown if p.endswith("/tyre")]
     assert len(tyres) == 4 and not any(shown[p] for p in tyres)
     assert {p for p, on in shown.items() if on and p.startswith("/world")} == {
-        "/world/robot/body", "/world/obstacles/struck"
+        "/world/robot/body",
+        "/world/obstacles/struck",
     }
 
 

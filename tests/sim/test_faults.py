@@ -138,9 +138,11 @@ def test_fault_labels_mark_the_active_interval() -> None:
 
 
 def test_same_scenario_gives_the_same_trace_bit_for_bit() -> None:
-    from sim import random_scenario
+    from sim import ScenarioOptions, draw_scenario
 
-    scenario = random_scenario(8, "fault", duration=6.0, fault_kind="loose_wheel", severity=(0.9, 1.0))
+    scenario = draw_scenario(
+        8, "fault", ScenarioOptions(duration=6.0, fault_kind="loose_wheel", severity=(0.9, 1.0))
+    )
     scenario = scenario.replace(faults=(Fault("loose_wheel", 0, 0.9, 0.5),))
     a, b = _flatten(simulate(scenario)), _flatten(simulate(scenario))
     assert a.keys() == b.keys()

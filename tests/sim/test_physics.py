@@ -95,9 +95,11 @@ def test_collision_impulse_matches_momentum_change() -> None:
 
 
 def test_nominal_run_has_transients_but_no_collisions() -> None:
-    from sim import random_scenario
+    from sim import ScenarioOptions, draw_scenario
 
-    scenario = random_scenario(4, "nominal", duration=25.0, environment="indoor", transient_density=3.0)
+    scenario = draw_scenario(
+        4, "nominal", ScenarioOptions(duration=25.0, environment="indoor", transient_density=3.0)
+    )
     trace = simulate(scenario)
     assert len(trace.contacts.time) == 0
     assert len(trace.transients.time) >= 4
@@ -107,9 +109,9 @@ def test_nominal_run_has_transients_but_no_collisions() -> None:
 
 
 def test_collision_run_labels_the_contact() -> None:
-    from sim import random_scenario
+    from sim import ScenarioOptions, draw_scenario
 
-    trace = simulate(random_scenario(1, "collision", duration=25.0, obstacle_kind="box"))
+    trace = simulate(draw_scenario(1, "collision", ScenarioOptions(duration=25.0, obstacle_kind="box")))
     assert "box" in trace.contacts.obstacle_kind
     t0 = trace.contacts.time[0]
     at = np.searchsorted(trace.imu_time, t0 + 0.01)

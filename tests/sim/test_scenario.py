@@ -14,7 +14,6 @@ from sim import (
     ScenarioError,
     ScenarioOptions,
     draw_scenario,
-    random_scenario,
     scenario_presets,
     simulate,
     vocab,
@@ -24,7 +23,7 @@ from sim.scenario import Fault, Obstacle, Route, Scenario, Unit, Waypoint
 
 
 def test_dict_round_trip_is_exact_and_json_able() -> None:
-    sc = random_scenario(5, "collision", duration=90.0, obstacle_kind="pedestrian")
+    sc = draw_scenario(5, "collision", ScenarioOptions(duration=90.0, obstacle_kind="pedestrian"))
     data = json.loads(json.dumps(sc.to_dict()))
     assert Scenario.from_dict(data) == sc
 
@@ -101,41 +100,40 @@ def test_shipped_example_scenarios_load() -> None:
         assert sc.name
 
 
-def test_random_scenario_depends_only_on_its_arguments() -> None:
-    a = random_scenario(11, "fault", duration=120.0, fault_kind="bearing")
-    b = random_scenario(11, "fault", duration=120.0, fault_kind="bearing")
-    c = random_scenario(12, "fault", duration=120.0, fault_kind="bearing")
+def test_draw_scenario_depends_only_on_its_arguments() -> None:
+    a = draw_scenario(11, "fault", ScenarioOptions(duration=120.0, fault_kind="bearing"))
+    b = draw_scenario(11, "fault", ScenarioOptions(duration=120.0, fault_kind="bearing"))
+    c = draw_scenario(12, "fault", ScenarioOptions(duration=120.0, fault_kind="bearing"))
     assert a == b
     assert a != c
     assert a.faults[0].kind == "bearing" and 0.3 <= a.faults[0].severity <= 1.0
     assert 0.0 < a.faults[0].onset < a.duration
 
 
-def test_draw_scenario_with_options_is_random_scenario() -> None:
+def test_draw_scenario_keeps_what_the_options_give() -> None:
     options = ScenarioOptions(
         duration=30.0, environment="indoor", fault_kind="imbalance", wheel=2, unit_id=5, surface="carpet"
     )
     drawn = draw_scenario(4, "fault", options)
-    assert drawn == random_scenario(4, "fault", **dataclasses.asdict(options))
     assert (drawn.surface, drawn.robot.unit_id, drawn.faults[0].wheel) == ("carpet", 5, 2)
-    assert draw_scenario(4, "nominal", ScenarioOptions(duration=30.0)) == random_scenario(
-        4, "nominal", duration=30.0
-    )
+    assert (drawn.environment, drawn.faults[0].kind, drawn.duration) == ("indoor", "imbalance", 30.0)
 
 
 def test_a_given_surface_changes_the_floor_and_nothing_else() -> None:
-    drawn = random_scenario(5, "nominal", duration=60.0, environment="outdoor")
+    drawn = draw_scenario(5, "nominal", ScenarioOptions(duration=60.0, environment="outdoor"))
     other = next(f for f in ("asphalt", "gravel") if f != drawn.surface)
-    given = random_scenario(5, "nominal", duration=60.0, environment="outdoor", surface=other)
+    given = draw_scenario(5, "nominal", ScenarioOptions(duration=60.0, environment="outdoor", surface=other))
     assert given.surface == other
     assert dataclasses.replace(given, surface=drawn.surface) == drawn
 
 
 @pytest.mark.parametrize("category", ["nominal", "collision", "fault"])
 @pytest.mark.parametrize("duration", [20.0, 340.0])
-def test_random_scenarios_are_valid_for_short_and_long_episodes(category: str, duration: float) -> None:
+def test_drawn_scenarios_are_valid_for_short_and_long_episodes(category: str, duration: float) -> None:
     for seed in range(3):
-        sc = random_scenario(seed, category, duration=duration, robot_model="diff2" if seed == 2 else "skid4")
+        sc = draw_scenario(
+            seed, category, ScenarioOptions(duration=duration, robot_model="diff2" if seed == 2 else "skid4")
+        )
         assert sc.route.loop and len(sc.route.waypoints) >= 2
         assert len(sc.transients) >= 2
         hits = [w for w in sc.route.waypoints if w.ram >= 0 and w.stop_short == 0]
@@ -151,7 +149,7 @@ def test_every_category_draws_the_same_manoeuvres() -> None:
         counts = {"near": 0, "back": 0, "estop": 0}
         reflexes = set()
         for seed in range(8):
-            sc = random_scenario(seed, category, duration=120.0)
+            sc = draw_scenario(seed, category, ScenarioOptions(duration=120.0))
             wps = sc.route.waypoints
             counts["near"] += sum(w.stop_short > 0 for w in wps)
             counts["back"] += sum(w.reverse for w in wps)
@@ -164,9 +162,16 @@ def test_every_category_draws_the_same_manoeuvres() -> None:
 def test_obstacles_stand_where_they_belong() -> None:
     for seed in range(6):
         for kind, where in (("door", "indoor"), ("desk", "indoor"), ("curb", "outdoor")):
-            assert random_scenario(seed, "collision", duration=24.0, obstacle_kind=kind).environment == where
+            assert (
+                draw_scenario(
+                    seed, "collision", ScenarioOptions(duration=24.0, obstacle_kind=kind)
+                ).environment
+                == where
+            )
     with pytest.raises(ScenarioError, match=r"environment = 'outdoor'.*obstacle_kind 'door'.*indoor"):
-        random_scenario(0, "collision", duration=24.0, obstacle_kind="door", environment="outdoor")
+        draw_scenario(
+            0, "collision", ScenarioOptions(duration=24.0, obstacle_kind="door", environment="outdoor")
+        )
 
 
 @pytest.mark.parametrize(
@@ -183,12 +188,12 @@ def test_obstacles_stand_where_they_belong() -> None:
         ({"surface": "tile"}, "surface = 'tile' needs an environment"),
     ],
 )
-def test_random_scenario_refuses_bad_arguments(kwargs: dict, message: str) -> None:  # type: ignore[type-arg]
+def test_draw_scenario_refuses_bad_arguments(kwargs: dict, message: str) -> None:  # type: ignore[type-arg]
     args = {"category": "fault", "duration": 30.0, **kwargs}
     category = args.pop("category")
     duration = args.pop("duration")
     with pytest.raises(ScenarioError, match=message):
-        random_scenario(0, category, duration=duration, **args)
+        draw_scenario(0, category, ScenarioOptions(duration=duration, **args))
 
 
 def test_presets_cover_every_obstacle_and_fault_kind() -> None:
@@ -211,7 +216,8 @@ def test_benign_bumps_per_second_do_not_grow_with_the_episode_length() -> None:
     # sequence meet ~3x more bumps per second than a 37 s fault episode. The wheels' actual encounters:
     def rate(category: str, duration: float) -> float:
         events = [
-            len(simulate(random_scenario(s, category, duration=duration)).transients.time) for s in range(2)
+            len(simulate(draw_scenario(s, category, ScenarioOptions(duration=duration))).transients.time)
+            for s in range(2)
         ]
         return sum(events) / (2 * duration)
 

@@ -88,7 +88,7 @@ def test_round_trip_keeps_every_field_at_its_stated_precision(tmp_path: Path) ->
 @pytest.fixture(scope="module")
 def simulated() -> Trace:
     """A real 6 s collision episode from the simulator (turns, a contact, a moving base)."""
-    return sim.simulate(sim.random_scenario(5, "collision", duration=6.0))
+    return sim.simulate(sim.draw_scenario(5, "collision", sim.ScenarioOptions(duration=6.0)))
 
 
 def test_a_simulated_trace_keeps_its_derived_fields_within_tolerance(

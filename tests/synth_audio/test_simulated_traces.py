@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim import random_scenario, simulate
+from sim import ScenarioOptions, draw_scenario, simulate
 from synth_audio import AudioConfig, render
 
 SR = 44100
@@ -18,7 +18,7 @@ SR = 44100
 def test_simulated_trace_renders_with_events_where_the_trace_puts_them(
     category: str, kwargs: dict[str, str]
 ) -> None:
-    trace = simulate(random_scenario(5, category, duration=12.0, **kwargs))  # type: ignore[arg-type]
+    trace = simulate(draw_scenario(5, category, ScenarioOptions(duration=12.0, **kwargs)))  # type: ignore[arg-type]
     audio = render(trace, AudioConfig(stems=True), seed=1)
     assert audio.samples.shape == (round(trace.duration * SR), 2)
     assert np.all(np.isfinite(audio.samples)) and np.max(np.abs(audio.samples)) <= 1.0

@@ -361,6 +361,70 @@ def _subset_auc(scores: list[np.ndarray], positive: np.ndarray, keep: np.ndarray
     return float(np.mean([weighted_auc(s[keep], positive[keep], ones) for s in scores]))
 
 
+def _score_conditions(
+    dataset: Dataset,
+    models: Sequence[TrainedModel],
+    config: RobustnessConfig,
+    rows: list[WindowRow],
+    conditions: list[Perturbation | None],
+    progress: bool,
+    executor: Executor | None,
+) -> list[ConditionScores]:
+    """One scoring task per condition (None: clean), run on `executor`; their scores in condition order."""
+    manifest_index = {e: i for i, e in enumerate(dataset.episode_ids)}
+    missing = sorted({r.episode for r in rows} - set(manifest_index))
+    if missing:
+        raise DatasetError(f"{dataset.path}: test episode {missing[0]} is not in manifest.json")
+    episode_index = tuple((e, manifest_index[e]) for e in dict.fromkeys(r.episode for r in rows))
+    run = uuid.uuid4().hex
+    tasks = [
+        ScoringTask(
+            run=run,
+            data=Path(dataset.path).absolute(),
+            models=tuple(Path(m.path).absolute() for m in models),
+            rows=tuple(rows),
+            episode_index=episode_index,
+            perturbation=condition,
+            seed=config.seed,
+        )
+        for condition in conditions
+    ]
+    _loaded(run).detectors = [m.detector for m in models]  # what tasks run here use
+    try:
+        return (executor or LocalExecutor(1)).map(
+            score_condition, tasks, desc="perturbing and scoring", progress=progress
+        )
+    finally:
+        _forget(run)
+
+
+def _condition_result(
+    method: str,
+    condition: Perturbation | None,
+    condition_scores: ConditionScores,
+    finite: list[tuple[np.ndarray, int]],
+    boot: BootstrapAuc,
+    clean_boot: dict[str, BootstrapAuc],
+    kinds: np.ndarray,
+) -> ConditionResult:
+    """One method's row for one condition: its AUC, against the clean one, and per anomaly kind."""
+    positive = kinds != "normal"
+    scores = [s for s, _ in finite]
+    clean = clean_boot[method]
+    return ConditionResult(
+        method=method,
+        kind="clean" if condition is None else condition.kind,
+        severity=0.0 if condition is None else float(condition.severity),
+        auc=boot.interval(),
+        ratio=ratio_interval(boot, clean),
+        delta=boot.minus(clean),
+        auc_collision=_subset_auc(scores, positive, ~positive | (kinds == "collision")),
+        auc_mechanical=_subset_auc(scores, positive, ~positive | (kinds == "mechanical")),
+        nonfinite_scores=sum(n for _, n in finite),
+        mirrored_windows=condition_scores.mirrored_windows,
+    )
+
+
 def run_robustness(
     dataset: Dataset,
     models: Sequence[TrainedModel],
@@ -379,61 +443,22 @@ def run_robustness(
     kinds = np.array([r.kind for r in rows]).astype(str)
     episodes = np.array([r.episode for r in rows]).astype(str)
     positive = kinds != "normal"
-    weights = episode_draws(episodes, positive, config.replicates, config.bootstrap_seed)
-    manifest_index = {e: i for i, e in enumerate(dataset.episode_ids)}
-    missing = sorted({r.episode for r in rows} - set(manifest_index))
-    if missing:
-        raise DatasetError(f"{dataset.path}: test episode {missing[0]} is not in manifest.json")
-    episode_index = tuple((e, manifest_index[e]) for e in dict.fromkeys(r.episode for r in rows))
     by_method: dict[str, list[int]] = {}
     for i, m in enumerate(models):
         by_method.setdefault(m.method, []).append(i)
     conditions: list[Perturbation | None] = [None, *config.perturbations]
-    run = uuid.uuid4().hex
-    tasks = [
-        ScoringTask(
-            run=run,
-            data=Path(dataset.path).absolute(),
-            models=tuple(Path(m.path).absolute() for m in models),
-            rows=tuple(rows),
-            episode_index=episode_index,
-            perturbation=condition,
-            seed=config.seed,
-        )
-        for condition in conditions
-    ]
-    _loaded(run).detectors = [m.detector for m in models]  # what tasks run here use
-    try:
-        scored = (executor or LocalExecutor(1)).map(
-            score_condition, tasks, desc="perturbing and scoring", progress=progress
-        )
-    finally:
-        _forget(run)
-    collision = ~positive | (kinds == "collision")
-    mechanical = ~positive | (kinds == "mechanical")
-    clean_boot: dict[str, BootstrapAuc] = {}
+    scored = _score_conditions(dataset, models, config, rows, conditions, progress, executor)
+    weights = episode_draws(episodes, positive, config.replicates, config.bootstrap_seed)
     results: list[ConditionResult] = []
+    clean_boot: dict[str, BootstrapAuc] = {}
     for condition, condition_scores in zip(conditions, scored, strict=True):
         for method, indices in by_method.items():
             finite = [finite_scores(condition_scores.scores[i]) for i in indices]
-            scores = [s for s, _ in finite]
-            boot = bootstrap_mean_auc(np.stack(scores), positive, episodes, weights)
+            boot = bootstrap_mean_auc(np.stack([s for s, _ in finite]), positive, episodes, weights)
             if condition is None:
                 clean_boot[method] = boot
-            clean = clean_boot[method]
             results.append(
-                ConditionResult(
-                    method=method,
-                    kind="clean" if condition is None else condition.kind,
-                    severity=0.0 if condition is None else float(condition.severity),
-                    auc=boot.interval(),
-                    ratio=ratio_interval(boot, clean),
-                    delta=boot.minus(clean),
-                    auc_collision=_subset_auc(scores, positive, collision),
-                    auc_mechanical=_subset_auc(scores, positive, mechanical),
-                    nonfinite_scores=sum(n for _, n in finite),
-                    mirrored_windows=condition_scores.mirrored_windows,
-                )
+                _condition_result(method, condition, condition_scores, finite, boot, clean_boot, kinds)
             )
     return RobustnessResult(
         config=config,

@@ -129,6 +129,22 @@ def log_recording(
     return plan
 
 
+def _read_and_score(
+    dataset_dir: str | os.PathLike[str],
+    episode_id: str,
+    model_dir: str | os.PathLike[str] | None,
+    hop_s: float,
+) -> tuple[Episode, Trace | None, EpisodeScores | None]:
+    """The episode, its simulator trace (None for a recording) and, with a model, its window scores."""
+    episode = read_episode(find_episode(dataset_dir, episode_id))
+    trace = episode.trace() if episode.source != IMPORTED else None
+    if model_dir is None:
+        return episode, trace, None
+    method, detector = load_model(model_dir)
+    require_episode_modalities(episode, method)
+    return episode, trace, score_episode(episode, detector, method, hop_s, model_dir=Path(model_dir))
+
+
 def log_episode(
     dataset_dir: str | os.PathLike[str],
     episode_id: str,
@@ -168,13 +184,7 @@ def log_episode(
     if not hop_s > 0:
         raise UserError(f"hop_s = {hop_s} is invalid; allowed: > 0 s")
     config = config or VizConfig()
-    episode = read_episode(find_episode(dataset_dir, episode_id))
-    trace = episode.trace() if episode.source != IMPORTED else None
-    scores = None
-    if model_dir is not None:
-        method, detector = load_model(model_dir)
-        require_episode_modalities(episode, method)
-        scores = score_episode(episode, detector, method, hop_s, model_dir=Path(model_dir))
+    episode, trace, scores = _read_and_score(dataset_dir, episode_id, model_dir, hop_s)
     title = f"{episode_id} ({episode.meta.category}, unit {episode.meta.unit_id})"
     plan = plan_recording(episode, trace, scores, config)
     method_name = scores.method if scores is not None else None

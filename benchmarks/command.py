@@ -40,22 +40,19 @@ class Command:
     """One or two command lines, one a line, shown under "example:" by `msvdd-bench NAME --help`."""
 
 
-def add_dataset_arguments(p: argparse.ArgumentParser, preset_default: str | None, seed_default: str) -> None:
+def add_dataset_arguments(p: argparse.ArgumentParser, preset_default: str | None) -> None:
     """`--preset` and `--seed`, the dataset preset and the dataset seed: the one meaning of both flags in
-    every command (`preset_default` None: a given dataset decides; `seed_default`: how the default reads)."""
-    preset_help = (
-        f"default: {preset_default}" if preset_default else "default: quick; with --data, the dataset's"
-    )
+    every command (`preset_default` None: a given dataset decides, else quick and seed 0)."""
+    given = " (default: quick; with --data, the dataset's)" if preset_default is None else ""
     p.add_argument(
-        "--preset",
-        default=preset_default,
-        help=f"dataset preset, see `msvdd-bench presets` ({preset_help})",
+        "--preset", default=preset_default, help=f"dataset preset, see `msvdd-bench presets`{given}"
     )
     p.add_argument(
         "--seed",
         type=int,
-        default=0 if preset_default else None,
-        help=f"dataset seed: the same preset and seed give the same checksums (default: {seed_default})",
+        default=None if preset_default is None else 0,
+        help="dataset seed: the same preset and seed give the same checksums"
+        + (" (default: 0; with --data, the dataset's)" if preset_default is None else ""),
     )
 
 

@@ -21,7 +21,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -441,10 +441,6 @@ def write_imported_episode(
     return directory
 
 
-IMU_SIGNALS: tuple[str, ...] = ("time", "vel_z", "imu6", "label", "sub_kind", "label_wheel")
-"""The arrays of `imu.npz` (the fields of `ImuArrays`)."""
-
-
 @dataclass(frozen=True)
 class ImuArrays:
     """What `imu.npz` holds, at the IMU rate."""
@@ -474,6 +470,10 @@ class ImuArrays:
                 sub_kind=self.sub_kind,
                 label_wheel=self.label_wheel,
             )
+
+
+IMU_SIGNALS: tuple[str, ...] = tuple(f.name for f in fields(ImuArrays))
+"""The arrays of `imu.npz`."""
 
 
 @contextlib.contextmanager

@@ -18,8 +18,16 @@ from typing import Any, Self
 
 import numpy as np
 
-from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WINDOW_S, WindowError, Windows
-from msvdd.model import ModelFormatError
+from msvdd.contract import (
+    AUDIO_LEN,
+    AUDIO_RATE,
+    IMU_LEN,
+    IMU_RATE,
+    WINDOW_S,
+    ModelFormatError,
+    WindowError,
+    Windows,
+)
 
 MANIFEST_FILE = "scorer.json"
 """Name of the export's JSON description inside the folder."""

@@ -247,7 +247,7 @@ def _axes(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return forward, lateral
 
 
-def yaw_of(quat: np.ndarray) -> float:
+def yaw_of(quat: np.ndarray | tuple[float, float, float, float]) -> float:
     """Heading about z of orientation `quat` (w, x, y, z)."""
     qw, qx, qy, qz = quat
     return math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))

@@ -22,7 +22,7 @@ import numpy as np
 from dm_env import specs
 
 from sim.engine import CONTROL_STEPS, Engine
-from sim.events import MERGE_GAP, extend_runs, labels
+from sim.events import extend_runs, labels, merge_gap_steps
 from sim.faults import fault_record
 from sim.imu import ImuNoise, decimate, decimation_factor, imu_noise
 from sim.random_scenarios import ScenarioOptions, draw_scenario
@@ -148,7 +148,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self.engine.step(cmd, self._buffer)
         k = len(self.world.obstacles)
         hits = self._buffer[:, sl.obstacle_contact : sl.obstacle_contact + 7 * k].reshape(-1, k, 7)
-        gap = max(1, round(MERGE_GAP / self.engine.dt))
+        gap = merge_gap_steps(self.engine.dt)
         for k, found in enumerate(self._contact_runs):  # the contact runs so far, extended by this step's
             extend_runs(found, self._steps + np.flatnonzero(hits[:, k, 0] > 0), gap)
         self._steps += hits.shape[0]

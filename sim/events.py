@@ -14,6 +14,13 @@ from sim.trace import ContactEvents, FaultRecord, ObstacleRecord, TransientEvent
 
 MERGE_GAP = 0.05
 """Contacts separated by less than this are one event, s."""
+
+
+def merge_gap_steps(dt: float) -> int:
+    """`MERGE_GAP` in physics steps of `dt` (at least 1): the longest gap inside one contact event."""
+    return max(1, round(MERGE_GAP / dt))
+
+
 LABEL_MARGIN_BEFORE = 0.02
 """A collision label starts this long before first contact, s."""
 LABEL_MARGIN_AFTER = 0.25
@@ -66,7 +73,7 @@ def contact_events(
     Returns:
         The events (sorted by time) and their (start, stop, obstacle) index runs.
     """
-    gap = max(1, round(MERGE_GAP / dt))
+    gap = merge_gap_steps(dt)
     rows: list[tuple[float, np.ndarray, np.ndarray, float, float, float, int, tuple[int, int]]] = []
     for k in range(found.shape[1]):
         for start, stop in runs(found[:, k] > 0, gap):

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from sim.driving import RouteController
-from sim.engine import CONTROL_STEPS, Engine
-from sim.events import MERGE_GAP, contact_events, labels, transient_events
+from sim.engine import CONTROL_STEPS, Engine, yaw_of
+from sim.events import contact_events, labels, merge_gap_steps, transient_events
 from sim.faults import fault_record
 from sim.imu import imu_samples
 from sim.scenario import Scenario
@@ -76,8 +74,6 @@ class Recording:
         ends = [0] + [start + width for start, width in spans]
         if [start for start, _ in spans] != ends[:-1] or ends[-1] != nsensordata:
             raise RuntimeError(f"the recorded signals {spans} do not tile the {nsensordata} sensor values")
-        self.periods = periods
-        """Control periods the buffer holds."""
         self.buffer = np.empty((periods * CONTROL_STEPS, nsensordata))
         """Where the rollout writes: (periods x CONTROL_STEPS, nsensordata)."""
         self.done = 0
@@ -132,7 +128,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
     sl = world.sensors
     n = steps_for(scenario, engine.dt)
     k_obs = len(world.obstacles)
-    merge_gap = max(1, round(MERGE_GAP / engine.dt))  # the longest gap inside a contact event, steps
+    merge_gap = merge_gap_steps(engine.dt)  # the longest gap inside a contact event, steps
     periods = max(RECORD_PERIODS, merge_gap // CONTROL_STEPS + 2)  # a block is longer than the gap
     record = Recording(n, world.model.nsensordata, sl, world.n_wheels, k_obs, periods)
     pose_at, targets_at, found_at = sl.base_pos, sl.obstacle_pos, sl.obstacle_contact
@@ -162,7 +158,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
         if slot == 0 and start > 0:  # buffer full: move it to the arrays, start again at its top
             record.move(start)
         x, y, _, qw, qx, qy, qz = pose_now.tolist()
-        pose = (x, y, math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz)))  # yaw_of, inlined
+        pose = (x, y, yaw_of((qw, qx, qy, qz)))
         contact = False
         if found is not None and found.any():  # contact counts are whole numbers >= 0: any() is any(> 0)
             contact = True

@@ -430,6 +430,9 @@ def _fit_references(data: Dataset, got: _Collected, has_imu: bool) -> _Reference
     test = got.windows()
     reference = "early" if has_imu else "audio"
     early = GaussianReference(reference).fit(train)
+    if reference == "audio":  # without an IMU the reference is the audio-only model itself
+        s_early = early.score(test)
+        return _References(reference, early, early, s_early, s_early)
     audio_only = GaussianReference("audio").fit(train)
     del train
     return _References(reference, early, audio_only, early.score(test), audio_only.score(test))
@@ -466,9 +469,8 @@ def _reference_rows(refs: _References, labels: _Labels) -> list[ProbeRow]:
                 f"[{ci.low:.3f}, {ci.high:.3f}]",
             )
         )
-    for target, mask in (
-        labels.targets[:3] if reference != "audio" else ()
-    ):  # audio-only: the reference itself
+    audio_targets = labels.targets[:3] if reference != "audio" else ()  # audio-only: the reference itself
+    for target, mask in audio_targets:
         rows.append(
             ProbeRow(
                 "reference",

@@ -10,7 +10,7 @@ from benchmarks.command import Command, add_dataset_arguments, add_executor_argu
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    add_dataset_arguments(p, "quick", "0")
+    add_dataset_arguments(p, "quick")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--out", type=Path, help="dataset folder to create (must not exist)")
     where.add_argument(

@@ -19,7 +19,7 @@ from benchmarks.command import (
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by `run` and `demo`."""
-    add_dataset_arguments(p, None, "0; with --data, the dataset's")
+    add_dataset_arguments(p, None)
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
     p.add_argument(
         "--methods",

@@ -398,19 +398,29 @@ def _score_conditions(
         _forget(run)
 
 
+@dataclass(frozen=True)
+class _Truth:
+    """The test windows' labels, as the AUCs need them (built once per run)."""
+
+    positive: np.ndarray
+    """Anomalous windows."""
+    collision: np.ndarray
+    """Normal and collision windows (the collision AUC's subset)."""
+    mechanical: np.ndarray
+    """Normal and mechanical windows (the mechanical AUC's subset)."""
+
+
 def _condition_result(
     method: str,
     condition: Perturbation | None,
-    condition_scores: ConditionScores,
     finite: list[tuple[np.ndarray, int]],
+    mirrored_windows: int,
     boot: BootstrapAuc,
-    clean_boot: dict[str, BootstrapAuc],
-    kinds: np.ndarray,
+    clean: BootstrapAuc,
+    truth: _Truth,
 ) -> ConditionResult:
-    """One method's row for one condition: its AUC, against the clean one, and per anomaly kind."""
-    positive = kinds != "normal"
+    """One method's row for one condition: its AUC, against the clean one (`clean`), and per anomaly kind."""
     scores = [s for s, _ in finite]
-    clean = clean_boot[method]
     return ConditionResult(
         method=method,
         kind="clean" if condition is None else condition.kind,
@@ -418,10 +428,10 @@ def _condition_result(
         auc=boot.interval(),
         ratio=ratio_interval(boot, clean),
         delta=boot.minus(clean),
-        auc_collision=_subset_auc(scores, positive, ~positive | (kinds == "collision")),
-        auc_mechanical=_subset_auc(scores, positive, ~positive | (kinds == "mechanical")),
+        auc_collision=_subset_auc(scores, truth.positive, truth.collision),
+        auc_mechanical=_subset_auc(scores, truth.positive, truth.mechanical),
         nonfinite_scores=sum(n for _, n in finite),
-        mirrored_windows=condition_scores.mirrored_windows,
+        mirrored_windows=mirrored_windows,
     )
 
 
@@ -449,6 +459,7 @@ def run_robustness(
     conditions: list[Perturbation | None] = [None, *config.perturbations]
     scored = _score_conditions(dataset, models, config, rows, conditions, progress, executor)
     weights = episode_draws(episodes, positive, config.replicates, config.bootstrap_seed)
+    truth = _Truth(positive, ~positive | (kinds == "collision"), ~positive | (kinds == "mechanical"))
     results: list[ConditionResult] = []
     clean_boot: dict[str, BootstrapAuc] = {}
     for condition, condition_scores in zip(conditions, scored, strict=True):
@@ -457,8 +468,9 @@ def run_robustness(
             boot = bootstrap_mean_auc(np.stack([s for s, _ in finite]), positive, episodes, weights)
             if condition is None:
                 clean_boot[method] = boot
+            mirrored = condition_scores.mirrored_windows
             results.append(
-                _condition_result(method, condition, condition_scores, finite, boot, clean_boot, kinds)
+                _condition_result(method, condition, finite, mirrored, boot, clean_boot[method], truth)
             )
     return RobustnessResult(
         config=config,

@@ -106,9 +106,7 @@ def _right_column(layout: Layout) -> rrb.Vertical:
     if layout.imu:
         views.append(_series("IMU z velocity, m/s", ["signals/imu/vel_z"], d))
         shares.append(1.6)
-    views.append(
-        _series("Microphones, min/max per ms: left (blue), right (green)", ["signals/audio/**"], d)
-    )
+    views.append(_series("Microphones, min/max per ms: left (blue), right (green)", ["signals/audio/**"], d))
     shares.append(1.6)
     tabs: list[rrb.Container | rrb.View] = []
     if layout.imu:

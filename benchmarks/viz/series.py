@@ -367,9 +367,7 @@ def log_scores(
     )
     _style(rec, "detector/threshold", ["threshold"], [palette.THRESHOLD], width=1.5)
     truth_t, truth_v = truth_steps(spans, duration_s, axis.truth_low, axis.truth_high)
-    rec.send_columns(
-        "detector/truth", indexes=[_times(truth_t)], columns=rr.Scalars.columns(scalars=truth_v)
-    )
+    rec.send_columns("detector/truth", indexes=[_times(truth_t)], columns=rr.Scalars.columns(scalars=truth_v))
     truth_colour = palette.LABEL_COLORS[spans[0].label] if spans else palette.LABEL_COLORS["collision"]
     _style(rec, "detector/truth", ["true anomaly (up = anomalous)"], [truth_colour], step=True, width=2.0)
     hit = scores.detected

@@ -8,7 +8,9 @@ with `threshold_` fixed at fit time from nominal data only (`Detector`: the one 
 from __future__ import annotations
 
 import abc
+import contextlib
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import ClassVar, Self
 
@@ -33,6 +35,20 @@ class ModelFormatError(ValueError):
     missing or malformed: an M-SVDD model file (`msvdd.model.MSVDD.load`) or a benchmark method's model
     folder or file (`benchmarks.methods`). The message names the file and, where one is at fault, the
     field."""
+
+
+@contextlib.contextmanager
+def model_fields(source: object) -> Iterator[None]:
+    """Around rebuilding a model from a read file's fields: what that raises for a missing or malformed field
+    becomes a ModelFormatError naming `source` (the file) and the field."""
+    try:
+        yield
+    except ModelFormatError as err:  # the model's own finding, which does not know the file
+        raise ModelFormatError(f"{source}: {err}") from err
+    except KeyError as err:
+        raise ModelFormatError(f"{source}: field {err} is missing") from err
+    except (AttributeError, TypeError, ValueError) as err:
+        raise ModelFormatError(f"{source}: a field is malformed ({err})") from err
 
 
 @dataclass(frozen=True)

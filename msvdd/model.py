@@ -25,7 +25,15 @@ import torch
 from torch import nn
 
 from msvdd.config import MSVDDConfig
-from msvdd.contract import Detector, ModelFormatError, NotFittedError, WindowError, Windows, check_windows
+from msvdd.contract import (
+    Detector,
+    ModelFormatError,
+    NotFittedError,
+    WindowError,
+    Windows,
+    check_windows,
+    model_fields,
+)
 from msvdd.frontend import InputNormalizer
 from msvdd.losses import (
     batch_statistics,
@@ -367,12 +375,8 @@ class MSVDD(Detector):
                 f"{source} has model format version {version}; "
                 f"this code reads versions 1 and {FORMAT_VERSION}"
             )
-        try:
+        with model_fields(source):
             return cls._from_payload(payload, version, device)
-        except KeyError as err:
-            raise ModelFormatError(f"{source}: field {err} is missing") from err
-        except (TypeError, ValueError) as err:
-            raise ModelFormatError(f"{source}: a field is malformed ({err})") from err
 
     @classmethod
     def _from_payload(cls, payload: dict[str, Any], version: int, device: str | None) -> Self:

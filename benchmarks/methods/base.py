@@ -10,7 +10,7 @@ import numpy as np
 
 from benchmarks.errors import UserError
 from benchmarks.methods._io import load_npz, save_npz
-from msvdd.contract import Detector, ModelFormatError, NotFittedError
+from msvdd.contract import Detector, NotFittedError, model_fields
 
 SCALES: tuple[str, ...] = ("smoke", "short", "full")
 """Training budgets every method understands: smoke (seconds: tests), short (minutes: `make demo`), full
@@ -67,13 +67,7 @@ class WindowDetector(Detector):
                 malformed, or a model that does not rebuild; the message names the file (and the field).
         """
         header, arrays = load_npz(path, cls.kind, cls.format_version)
-        try:
+        with model_fields(f"model file {path}"):
             detector = cls._from_state(header, arrays)
             detector._set_threshold(float(header["threshold"]), str(header.get("threshold_source", "train")))
-        except ModelFormatError as err:
-            raise ModelFormatError(f"model file {path}: {err}") from err
-        except KeyError as err:
-            raise ModelFormatError(f"model file {path}: field {err} is missing") from err
-        except (TypeError, ValueError) as err:
-            raise ModelFormatError(f"model file {path}: a field is malformed ({err})") from err
         return detector

@@ -18,7 +18,6 @@ and a training budget of the former names (`LEGACY_SCALES`) reads as today's nam
 from __future__ import annotations
 
 import math
-import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,8 +54,7 @@ class EpisodeSpec:
     """One planned episode: enough to simulate and render it in any process (`benchmarks.dataset`
     plans it; the manifest records it).
 
-    In the file the plan is one flat object: the fields below and the scenario options under the names
-    `_OPTION_KEYS` gives them, in the order of `_SPEC_KEYS`.
+    In the file the plan is one flat object (`_PlanRecord`): the fields below and the scenario options.
     """
 
     episode_id: str
@@ -95,77 +93,57 @@ class EpisodeSpec:
         return self.options.unit_id
 
     def to_dict(self) -> dict[str, Any]:
-        """The plan as it is written: one flat object (`_SPEC_KEYS`)."""
-
-        def value(key: str) -> Any:
-            return getattr(self.options, _OPTION_KEYS[key]) if key in _OPTION_KEYS else getattr(self, key)
-
-        return {key: plain(value(key)) for key in _SPEC_KEYS}
+        """The plan as it is written: one flat object (`_PlanRecord`)."""
+        o = self.options
+        record = _PlanRecord(
+            self.episode_id, self.category, self.split, self.seed, self.unit_id, self.snr_db, o.duration,
+            o.environment, o.obstacle_kind, o.fault_kind, o.wheel, o.severity, o.transient_density,
+            o.surface, self.drive_speed_scale, self.approach_speed_scale,
+        )  # fmt: skip
+        doc: dict[str, Any] = plain(record)
+        return doc
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any], where: str) -> EpisodeSpec:
         """Read a plan written by `to_dict` (`where`: the file and the entry, for messages); a missing,
         ill-typed or unknown field is a `DatasetError` naming it."""
-        unknown = sorted(set(doc) - set(_SPEC_KEYS))
-        if unknown:
-            raise DatasetError(f"{where}: unknown field {unknown[0]!r}")
-        own_hints = typing.get_type_hints(cls)
-        option_hints = {**typing.get_type_hints(ScenarioOptions), "unit_id": int}
-        own: dict[str, Any] = {}
-        options: dict[str, Any] = {}
-        for key in _SPEC_KEYS:
-            if key not in doc:
-                if key not in _OPTIONAL_KEYS:
-                    raise DatasetError(f"{where}: missing field {key!r}")
-                continue
-            name = _OPTION_KEYS.get(key)
-            hint = own_hints[key] if name is None else option_hints[name]
-            value = read_value(doc[key], hint, f"{where}: field {key!r}", DatasetError)
-            if name is None:
-                own[key] = value
-            else:
-                options[name] = value
+        r = read_record(_PlanRecord, doc, where, DatasetError)
         try:
-            return cls(**own, options=ScenarioOptions(**options))
+            options = ScenarioOptions(
+                duration=r.duration_s, environment=r.environment, obstacle_kind=r.obstacle_kind,
+                fault_kind=r.fault_kind, wheel=r.wheel, severity=r.severity, unit_id=r.unit_id,
+                transient_density=r.transient_density, surface=r.surface,
+            )  # fmt: skip
+            return cls(
+                r.episode_id, r.category, r.split, r.seed, r.snr_db, options,
+                r.drive_speed_scale, r.approach_speed_scale,
+            )  # fmt: skip
         except ValueError as exc:
             raise DatasetError(f"{where}: {exc}") from exc
 
 
-_OPTION_KEYS: dict[str, str] = {
-    "unit_id": "unit_id",
-    "duration_s": "duration",
-    "environment": "environment",
-    "obstacle_kind": "obstacle_kind",
-    "fault_kind": "fault_kind",
-    "wheel": "wheel",
-    "severity": "severity",
-    "transient_density": "transient_density",
-    "surface": "surface",
-}
-"""A plan's keys in the file that hold its scenario options -> the `ScenarioOptions` field."""
+@dataclass(frozen=True)
+class _PlanRecord:
+    """An `EpisodeSpec` as manifest.json holds it, one flat object; the fields mean what `EpisodeSpec`'s and
+    `ScenarioOptions`' do (`duration_s` is `ScenarioOptions.duration`). The last three were added later:
+    a file without them reads at their defaults."""
 
-_SPEC_KEYS: tuple[str, ...] = (
-    "episode_id",
-    "category",
-    "split",
-    "seed",
-    "unit_id",
-    "snr_db",
-    "duration_s",
-    "environment",
-    "obstacle_kind",
-    "fault_kind",
-    "wheel",
-    "severity",
-    "transient_density",
-    "surface",
-    "drive_speed_scale",
-    "approach_speed_scale",
-)
-"""A plan's keys in the file, in the order they are written."""
-
-_OPTIONAL_KEYS: tuple[str, ...] = ("surface", "drive_speed_scale", "approach_speed_scale")
-"""Keys a plan may lack (written before they existed): read at their defaults."""
+    episode_id: str
+    category: str
+    split: str
+    seed: int
+    unit_id: int
+    snr_db: float
+    duration_s: float
+    environment: str | None
+    obstacle_kind: str | None
+    fault_kind: str | None
+    wheel: int | None
+    severity: tuple[float, float]
+    transient_density: float
+    surface: str | None = None
+    drive_speed_scale: float = 1.0
+    approach_speed_scale: float = 1.0
 
 
 @dataclass(frozen=True)

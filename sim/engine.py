@@ -124,13 +124,9 @@ class Engine:
         pos = pedestrian_positions(tuple(self.scenario.obstacles[i] for i in self.ped_index), times)
         target[..., self.ped_mocap, :] = pos[-1] if target.ndim == 2 else pos
 
-    def wheel_commands(self, v: float, w: float) -> np.ndarray:
-        """(W,) wheel speed commands (rad/s) for body speed v (m/s) and yaw rate w (rad/s)."""
-        return np.array(self.wheel_command_list(v, w))
-
-    def wheel_command_list(self, v: float, w: float) -> list[float]:
-        """`wheel_commands` as a list of floats (the same values; `step` takes either, and the list is
-        cheaper to make once per control period)."""
+    def wheel_commands(self, v: float, w: float) -> list[float]:
+        """(W,) wheel speed commands (rad/s) for body speed v (m/s) and yaw rate w (rad/s), as Python floats
+        (cheaper to make once per control period than an array; `step` takes either)."""
         turn = w * self.half_track  # (side x w) x half_track: -turn on the left, +turn on the right, exactly
         cmd = [(v - turn if left else v + turn) / r for left, r in self._wheel_sides]
         for forcing in self.forcings:

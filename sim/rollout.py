@@ -146,7 +146,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
         scenario.route, live_mask=live, footprints=footprints, reach=world.bumper_reach
     )
     command = controller.command
-    wheel_commands = engine.wheel_command_list
+    wheel_commands = engine.wheel_commands
     step = engine.step
     period = CONTROL_STEPS * engine.dt
     sd = engine.sensordata

@@ -68,6 +68,9 @@ def test_seed_flags_have_one_meaning_and_no_old_names(
         build_parser().parse_args(argv)
     assert exit_info.value.code == 2
     assert f"error: unrecognized arguments: {argv[-2]} {argv[-1]}\n" in capsys.readouterr().err
+
+
+def test_the_new_seed_flag_names_parse() -> None:
     parser = build_parser()
     assert parser.parse_args(["run", "--out", "r", "--train-seeds", "0", "1"]).train_seeds == [0, 1]
     assert parser.parse_args(["demo", "--out", "r", "--train-seeds", "2"]).train_seeds == [2]

@@ -20,7 +20,7 @@ def _constant_drive(scenario: Scenario, v: float, w: float, seconds: float) -> t
     n = round(seconds / engine.dt / CONTROL_STEPS) * CONTROL_STEPS
     out = np.empty((n, world.model.nsensordata))
     for start in range(0, n, CONTROL_STEPS):
-        engine.step(engine.wheel_commands(v, w), out[start : start + CONTROL_STEPS])
+        engine.step(np.array(engine.wheel_commands(v, w)), out[start : start + CONTROL_STEPS])
     return engine, out
 
 

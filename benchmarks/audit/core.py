@@ -10,6 +10,9 @@ The probes (limits in `benchmarks.audit.report`):
 - deleted: the test anomaly episodes rendered again from their stored traces without their own sound
   (impacts, scrapes and fault sounds muted; same seed, same physics), scored by the audio-only reference
   detector; if it still finds them, it hears something other than the anomaly;
+- level: in each fault test episode, the fault's own sound (the stored mix less its muted re-render)
+  against the rest of the mix in the fault's characteristic band after onset, dB; the median per sub-kind is
+  reported (far below 0 dB, the fault is in the physics but buried in the sound);
 - leak: windows of anomaly episodes at least 1 s away from any anomalous sample, against nominal test
   windows, scored by the reference detector;
 - clipping: share of windows of each class within 1 dB of full scale;
@@ -23,9 +26,9 @@ Scalars carry no direction, so they are judged two-sided (max(AUC, 1 - AUC)); de
 their AUC as it is (higher = flagged as more anomalous).
 
 A dataset imported from recordings (`msvdd-bench import`) has no simulator behind it: the behaviour,
-deleted-sound, ambience and context probes are skipped (rows with status SKIP and the reason), and the
-others run on what was recorded. Without IMU (an audio-only import) the IMU acceleration peak is skipped
-and the reference detector is the audio-only one (`gaussian-audio`).
+deleted-sound, fault-level, ambience and context probes are skipped (rows with status SKIP and the reason),
+and the others run on what was recorded. Without IMU (an audio-only import) the IMU acceleration peak is
+skipped and the reference detector is the audio-only one (`gaussian-audio`).
 """
 
 from __future__ import annotations
@@ -55,14 +58,16 @@ from benchmarks.audit.report import (
     ProbeRow,
 )
 from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_config, open_dataset
-from benchmarks.episode import IMPORTED, read_episode, read_trace, read_trace_signals
+from benchmarks.episode import IMPORTED, audio_file, read_episode, read_trace, read_trace_signals
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
 from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
 from msvdd import preprocess
 from msvdd.contract import IMU_RATE, WINDOW_S, Windows
 from sim.random_scenarios import SETTLE_S
+from sim.trace import Trace
 from sim.vocab import NORMAL
+from synth_audio.faults import fault_band
 
 CONTEXT_MARGIN_S = 1.0
 """A context window stays this far from any anomalous sample of its episode, s."""
@@ -79,12 +84,15 @@ is what a contact does to a robot (it stops against the obstacle, then its refle
 what audio hears of the stop is limited by the deleted-sound probe."""
 NAIVE_AUDIO = ("rms", "peak", "crest", "flux")
 """Naive audio scalars with limits (the IMU acceleration peak is reported)."""
+FAULT_LEVEL_PROBE = "fault sound over the rest of the mix, in its band"
+"""The level probe's name: the fault's sound against everything else in the fault's band after onset."""
 NO_TRACE = "imported data has no simulator trace"
 """Why the probes that need the simulator's ground truth are skipped on an imported dataset."""
 TRACE_PROBES: tuple[tuple[str, str], ...] = (
     ("behaviour", "reads the robot's ground-truth motion"),
     ("context", "reads the simulated arena's size"),
     ("deleted", "renders the anomaly episodes again without their own sound"),
+    ("level", "compares the fault episodes' audio with its re-render without the fault's sound"),
     ("ambience", "renders the environment's noise beds again"),
 )
 """(group, what it needs) of the probes that need the simulator."""
@@ -186,8 +194,11 @@ def _collect(data: Dataset, progress: bool, simulated: bool, has_imu: bool) -> _
     return got
 
 
-def _deleted_windows(data: Dataset, rows: list[WindowRow], progress: bool) -> tuple[Windows, list[WindowRow]]:
-    """Anomalous test windows cut from audio rendered again without the anomaly's own sound."""
+def _deleted_windows(
+    data: Dataset, rows: list[WindowRow], progress: bool
+) -> tuple[Windows, list[WindowRow], list[tuple[str, float]]]:
+    """Anomalous test windows cut from audio rendered again without the anomaly's own sound, and per fault
+    episode (sub-kind, level of its fault sound in the mix: `_fault_level`)."""
     specs = data.episode_specs()
     by_episode: dict[str, list[WindowRow]] = {}
     for row in rows:
@@ -195,10 +206,14 @@ def _deleted_windows(data: Dataset, rows: list[WindowRow], progress: bool) -> tu
             by_episode.setdefault(row.episode, []).append(row)
     parts: list[Windows] = []
     kept: list[WindowRow] = []
+    levels: list[tuple[str, float]] = []
     for episode_id, ep_rows in tqdm(by_episode.items(), desc="audit: re-render muted", disable=not progress):
         spec = specs[episode_id]
         trace = read_trace(data.path / episode_id)
         audio = synth_audio.render(trace, episode_audio_config(spec, MUTED_ANOMALY_SOURCES), seed=spec.seed)
+        faulty = [r.sub_kind for r in ep_rows if r.kind == "mechanical"]
+        if faulty and trace.faults:
+            levels.append((faulty[0], _fault_level(data.path / episode_id, trace, audio)))
         starts = np.array([r.start_s for r in ep_rows])
         parts.append(
             preprocess.frame_windows(
@@ -209,7 +224,24 @@ def _deleted_windows(data: Dataset, rows: list[WindowRow], progress: bool) -> tu
             )
         )
         kept += ep_rows
-    return _concat(parts), kept
+    return _concat(parts), kept, levels
+
+
+def _fault_level(folder: Path, trace: Trace, muted: synth_audio.Audio) -> float:
+    """The fault's sound in the stored mix over the rest of the mix, dB: the stored audio less its re-render
+    without the anomaly's sound, against that re-render, in the fault's characteristic band
+    (`synth_audio.faults.fault_band`, at the faulty wheel's mean rotation rate) after the fault's onset."""
+    fault = trace.faults[0]
+    mix = synth_audio.read(audio_file(folder)).samples
+    rate = muted.sample_rate
+    after = trace.time >= fault.onset
+    if not after.any():
+        return math.nan
+    rotation_hz = float(np.abs(trace.wheel_speed[after, fault.wheel]).mean()) / (2 * np.pi)
+    band = fault_band(fault, rotation_hz, rate)
+    start = min(round(fault.onset * rate), mix.shape[0])
+    rest = muted.samples[start:].astype(np.float64)
+    return signals.level_db(mix[start:].astype(np.float64) - rest, rest, rate, band)
 
 
 def _concat(parts: list[Windows]) -> Windows:
@@ -512,6 +544,28 @@ def _leak_rows(got: _Collected, refs: _References, labels: _Labels) -> list[Prob
     return rows
 
 
+def _fault_level_rows(levels: list[tuple[str, float]]) -> list[ProbeRow]:
+    """Level: how loud the fault episodes' own sound is in their mix (median over episodes, dB; reported)."""
+    rows = []
+    groups = [("mechanical", [v for _, v in levels])]
+    groups += [(f"sub:{k}", [v for s, v in levels if s == k]) for k in sorted({s for s, _ in levels})]
+    for target, values in groups:
+        finite = np.array([v for v in values if math.isfinite(v)])
+        if finite.size:
+            rows.append(
+                ProbeRow(
+                    "level",
+                    FAULT_LEVEL_PROBE,
+                    target,
+                    float(np.median(finite)),
+                    None,
+                    "dB",
+                    f"median of {finite.size} episodes; range {finite.min():+.1f} to {finite.max():+.1f} dB",
+                )
+            )
+    return rows
+
+
 def _simulator_probes(
     data: Dataset, got: _Collected, s_audio: np.ndarray, audio_only: GaussianReference, progress: bool
 ) -> list[ProbeRow]:
@@ -520,7 +574,7 @@ def _simulator_probes(
     kinds = np.array([r.kind for r in got.rows])
     normal = kinds == "normal"
     # Deleted sound: re-render the anomaly episodes without it.
-    muted, muted_rows = _deleted_windows(data, got.rows, progress)
+    muted, muted_rows, levels = _deleted_windows(data, got.rows, progress)
     s_muted = audio_only.score(muted)
     muted_kinds = np.array([r.kind for r in muted_rows])
     for label in ("collision", "mechanical"):
@@ -545,6 +599,7 @@ def _simulator_probes(
         scores = np.r_[s_audio[normal], s_muted[mask]]
         raw = roc_auc(np.r_[np.zeros(int(normal.sum())), np.ones(int(mask.sum()))].astype(int), scores)
         rows.append(ProbeRow("deleted", "gaussian-audio, sound muted", f"sub:{sub}", raw, None, "auc", ""))
+    rows += _fault_level_rows(levels)
 
     # Ambience beds.
     nominal_eps = sorted({r.episode for r in got.rows if r.kind == "normal"})[:AMBIENCE_EPISODES]

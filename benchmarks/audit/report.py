@@ -43,7 +43,7 @@ class ProbeRow:
     """One line of the audit."""
 
     group: str
-    """Probe family: behaviour, naive, deleted, leak, clipping, reference, ambience, context."""
+    """Probe family: behaviour, naive, deleted, level, leak, clipping, reference, ambience, context."""
     probe: str
     """What is measured (a scalar's name, a detector)."""
     target: str
@@ -53,7 +53,7 @@ class ProbeRow:
     limit: float | None
     """The largest figure allowed, or None where the figure is only reported."""
     unit: str
-    """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`."""
+    """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`, `dB`."""
     detail: str = ""
     """Context for a reader: the raw AUC, counts, an interval."""
     skipped: str = ""
@@ -113,6 +113,8 @@ def _fmt(x: float | None, unit: str) -> str:
         return "n/a"
     if unit == "share":
         return f"{100 * x:.2f} %"
+    if unit == "dB":
+        return f"{x:+.1f}"
     return f"{x:.3f}"
 
 

@@ -171,3 +171,18 @@ def repetition(
     lags = np.arange(n)
     acf = acf / np.maximum(n - lags, 1) / (acf[0] / n + _TINY)
     return float(np.max(acf[lag0 : n // 2]))
+
+
+def band_power(x: np.ndarray, rate: float, band: tuple[float, float]) -> float:
+    """Energy of (n,) or (n, C) samples between band[0] (included) and band[1] (excluded) Hz, summed over the
+    channels: the sum of |rfft|^2 over the band's bins (Parseval up to the factor 2 / n of one-sided bins)."""
+    spectrum = np.abs(np.fft.rfft(np.asarray(x, dtype=np.float64), axis=0)) ** 2
+    freqs = np.fft.rfftfreq(np.asarray(x).shape[0], 1.0 / rate)
+    keep = (freqs >= band[0]) & (freqs < band[1])
+    return float(spectrum[keep].sum())
+
+
+def level_db(part: np.ndarray, rest: np.ndarray, rate: float, band: tuple[float, float]) -> float:
+    """Level of `part` over `rest` in `band`, dB (both (n, C) at `rate`)."""
+    ratio = (band_power(part, rate, band) + _TINY) / (band_power(rest, rate, band) + _TINY)
+    return float(10.0 * np.log10(ratio))

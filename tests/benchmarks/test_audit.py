@@ -14,9 +14,11 @@ from benchmarks.audit.core import context_starts
 from benchmarks.audit.signals import (
     acceleration_peak,
     audio_levels,
+    band_power,
     behaviour,
     clipped,
     forward_speed,
+    level_db,
     repetition,
 )
 from benchmarks.cli import main
@@ -71,6 +73,19 @@ def test_audio_levels_of_a_full_scale_sine() -> None:
     assert clipped(out["peak"]).tolist() == [False, True]
 
 
+def test_band_power_and_level_of_sines_on_exact_bins() -> None:
+    rate, n = 8000.0, 8000
+    t = np.arange(n) / rate
+    low, high = np.sin(2 * np.pi * 100.0 * t), 0.5 * np.sin(2 * np.pi * 1000.0 * t)
+    stereo = np.stack([low + high, low], axis=1)
+    # A sine of amplitude A on an exact bin has |X_k| = A n / 2; both channels hold the 100 Hz one.
+    assert band_power(stereo, rate, (50.0, 150.0)) == pytest.approx(2 * (n / 2) ** 2, rel=1e-9)
+    assert band_power(stereo, rate, (900.0, 1100.0)) == pytest.approx((0.5 * n / 2) ** 2, rel=1e-9)
+    assert band_power(stereo, rate, (200.0, 900.0)) == pytest.approx(0.0, abs=1e-9)
+    assert level_db(2 * stereo, stereo, rate, (50.0, 150.0)) == pytest.approx(20 * math.log10(2), abs=1e-9)
+    assert level_db(high[:, None], low[:, None], rate, (900.0, 1100.0)) > 150.0  # none of `rest` there
+
+
 def test_acceleration_peak_removes_gravity() -> None:
     acc = np.tile([0.0, 0.0, 9.81], (800, 1))
     acc[500] += [3.0, 4.0, 0.0]
@@ -96,7 +111,9 @@ def test_context_windows_keep_their_distance_from_anomalies() -> None:
 def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_path: Path) -> None:
     result = run_audit(tiny_dataset, progress=False)
     groups = {r.group for r in result.rows}
-    assert groups == {"behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "ambience"}
+    assert groups == {
+        "behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "level", "ambience"
+    }  # fmt: skip
     probes = {(r.group, r.probe) for r in result.rows}
     for name in ("reversing", "turning_in_place", "standing", "yaw_rate_peak", "peak_deceleration"):
         assert ("behaviour", name) in probes
@@ -128,3 +145,35 @@ def test_standing_still_is_a_stop_without_turning() -> None:
     v = np.where(t < 2.5, 0.0, 0.5)  # stands 2.5 s, then drives
     out = behaviour(v, np.zeros_like(t), rate, np.array([0.0, 2.0]))
     assert out["standing"].tolist() == pytest.approx([1.0, 0.25], abs=0.01)
+
+
+def test_fault_level_isolates_the_fault_sound_as_its_stem_does(tiny_dataset: Path) -> None:
+    """The level probe takes the fault's sound as the stored mix less its muted re-render; a render with stems
+    gives the fault's own stem: the two levels in the fault's band agree (the difference holds the fault's
+    reverberation and the 16-bit storage too)."""
+    import dataclasses
+
+    import synth_audio
+    from benchmarks.audit.core import MUTED_ANOMALY_SOURCES, _fault_level
+    from benchmarks.dataset import episode_audio_config, open_dataset
+    from benchmarks.episode import read_trace
+    from synth_audio.faults import fault_band
+
+    data = open_dataset(tiny_dataset)
+    specs = data.episode_specs()
+    episode = next(e for e, s in specs.items() if s.category == "fault" and s.split == "test")
+    trace = read_trace(tiny_dataset / episode)
+    config = episode_audio_config(specs[episode])
+    muted = synth_audio.render(
+        trace, episode_audio_config(specs[episode], MUTED_ANOMALY_SOURCES), specs[episode].seed
+    )
+    probe = _fault_level(tiny_dataset / episode, trace, muted)
+    stems = synth_audio.render(trace, dataclasses.replace(config, stems=True), specs[episode].seed)
+    fault = trace.faults[0]
+    after = trace.time >= fault.onset
+    band = fault_band(fault, float(np.abs(trace.wheel_speed[after, fault.wheel]).mean()) / (2 * np.pi), 44100)
+    start = round(fault.onset * 44100)
+    own = stems.stems["faults"][start:].astype(np.float64)
+    rest = stems.samples[start:].astype(np.float64) - own
+    assert math.isfinite(probe)
+    assert probe == pytest.approx(level_db(own, rest, 44100.0, band), abs=1.5)

@@ -57,27 +57,27 @@ _TRANSIENTS = {
 }
 
 
-def _box_distance(p: np.ndarray, ob: Obstacle) -> np.ndarray:
-    """Distance from points p (..., 2) to the obstacle's footprint (a rotated rectangle)."""
-    c, s = math.cos(ob.yaw), math.sin(ob.yaw)
-    rel = p - np.array([ob.x, ob.y])
+def _box_distances(p: np.ndarray, obstacles: list[Obstacle]) -> np.ndarray:
+    """(n, K) distance from points p (n, 2) to each obstacle's footprint (a rotated rectangle)."""
+    centre = np.array([[ob.x, ob.y] for ob in obstacles])
+    c = np.array([math.cos(ob.yaw) for ob in obstacles])
+    s = np.array([math.sin(ob.yaw) for ob in obstacles])
+    half = np.array([ob.size[:2] for ob in obstacles])
+    rel = p[:, None, :] - centre
     local = np.stack([rel[..., 0] * c + rel[..., 1] * s, -rel[..., 0] * s + rel[..., 1] * c], axis=-1)
-    excess = np.maximum(np.abs(local) - np.array(ob.size[:2]), 0.0)
+    excess = np.maximum(np.abs(local) - half, 0.0)
     return np.asarray(np.linalg.norm(excess, axis=-1))
 
 
 def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
     """Smallest distance from any of `points` (n, 2) to any obstacle (pedestrian paths included)."""
-    best = math.inf
+    best = float(_box_distances(points, obstacles).min()) if obstacles else math.inf
     for ob in obstacles:
-        d = _box_distance(points, ob)
-        best = min(best, float(d.min()))
-        for q in ob.path:
-            best = min(best, float(np.linalg.norm(points - np.array(q), axis=-1).min()) - ob.size[0])
-        if ob.path:
+        if ob.path:  # the path's waypoints, and the line from the start to its last one every 0.2 m
             line = _sample_segment(np.array([ob.x, ob.y]), np.array(ob.path[-1]), 0.2)
-            for lp in line:
-                best = min(best, float(np.linalg.norm(points - lp, axis=-1).min()) - ob.size[0])
+            walked = np.concatenate([np.array(ob.path, dtype=np.float64).reshape(-1, 2), line])
+            near = float(np.linalg.norm(points[:, None, :] - walked, axis=-1).min())
+            best = min(best, near - ob.size[0])
     return best
 
 

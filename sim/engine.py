@@ -211,7 +211,7 @@ class Engine:
         sd = self.sensordata
         quat = sd[sl.base_quat : sl.base_quat + 4]
         forward, lateral = _axes(quat)
-        up = np.cross(forward, lateral)
+        up = _cross(forward, lateral)
         rot = np.stack([forward, lateral, up], axis=1)
         base_pos = sd[sl.base_pos : sl.base_pos + 3]
         com = base_pos + rot @ self._base_ipos
@@ -231,8 +231,16 @@ class Engine:
             forcing.apply(times, theta, omega, forward, lateral, torque, wrench, qf, self.dt)
             hub = base_pos + rot @ self.world.robot.info.wheel_pos_body[wi]
             xf[:, base, :3] += wrench[:, :3]
-            xf[:, base, 3:] += wrench[:, 3:] + np.cross(hub - com, wrench[:, :3])
+            xf[:, base, 3:] += wrench[:, 3:] + _cross(hub - com, wrench[:, :3])
             control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis, with `np.cross`'s products and differences (the same bits) but
+    without its axis handling, which costs more than the arithmetic on the rollout's 3-vectors."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def _axes(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,6 +10,7 @@ laid across the route's legs so that nominal driving meets them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -59,14 +60,12 @@ _TRANSIENTS = {
 
 def _box_distances(p: np.ndarray, obstacles: list[Obstacle]) -> np.ndarray:
     """(n, K) distance from points p (n, 2) to each obstacle's footprint (a rotated rectangle)."""
-    centre = np.array([[ob.x, ob.y] for ob in obstacles])
-    c = np.array([math.cos(ob.yaw) for ob in obstacles])
-    s = np.array([math.sin(ob.yaw) for ob in obstacles])
-    half = np.array([ob.size[:2] for ob in obstacles])
-    rel = p[:, None, :] - centre
-    local = np.stack([rel[..., 0] * c + rel[..., 1] * s, -rel[..., 0] * s + rel[..., 1] * c], axis=-1)
-    excess = np.maximum(np.abs(local) - half, 0.0)
-    return np.asarray(np.linalg.norm(excess, axis=-1))
+    rows = [(ob.x, ob.y, math.cos(ob.yaw), math.sin(ob.yaw), ob.size[0], ob.size[1]) for ob in obstacles]
+    x, y, c, s, half_x, half_y = np.array(rows).T
+    rel_x, rel_y = p[:, 0, None] - x, p[:, 1, None] - y
+    excess_x = np.maximum(np.abs(rel_x * c + rel_y * s) - half_x, 0.0)
+    excess_y = np.maximum(np.abs(-rel_x * s + rel_y * c) - half_y, 0.0)
+    return np.asarray(np.sqrt(excess_x * excess_x + excess_y * excess_y))  # np.linalg.norm's arithmetic
 
 
 def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
@@ -83,8 +82,15 @@ def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
 
 def _sample_segment(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
     n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+    return np.asarray(a + _unit_steps(n) * (b - a))
+
+
+@functools.lru_cache(maxsize=1024)
+def _unit_steps(n: int) -> np.ndarray:
+    """(n, 1) read-only `np.linspace(0, 1, n)`, made once per n (the route sampler asks for few n, often)."""
     u = np.linspace(0.0, 1.0, n)[:, None]
-    return np.asarray(a + u * (b - a))
+    u.flags.writeable = False
+    return u
 
 
 def _segment_clear(a: np.ndarray, b: np.ndarray, obstacles: list[Obstacle], margin: float) -> bool:

@@ -61,6 +61,16 @@ _REFERENCE_SPEED = 0.8
 """Approach speed of the kernels' contact time, m/s (the strike speed changes only the impulse)."""
 
 
+def band_power(x: np.ndarray, rate: float, band: tuple[float, float]) -> float:
+    """Energy of (n,) or (n, C) samples between band[0] (included) and band[1] (excluded) Hz, summed over the
+    channels: the sum of |rfft|^2 over the band's bins (Parseval up to the factor 2 / n of one-sided bins).
+    The measure of a fault's level in its `fault_band` (the calibration kit's and the audit's)."""
+    spectrum = np.abs(np.fft.rfft(np.asarray(x, dtype=np.float64), axis=0)) ** 2
+    freqs = np.fft.rfftfreq(np.asarray(x).shape[0], 1.0 / rate)
+    keep = (freqs >= band[0]) & (freqs < band[1])
+    return float(spectrum[keep].sum())
+
+
 def fault_band(fault: FaultRecord, rotation_hz: float, sample_rate: int) -> tuple[float, float]:
     """Characteristic band of a fault's sound, Hz, where its calibrated level is measured.
 

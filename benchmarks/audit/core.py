@@ -227,21 +227,28 @@ def _deleted_windows(
     return _concat(parts), kept, levels
 
 
-def _fault_level(folder: Path, trace: Trace, muted: synth_audio.Audio) -> float:
-    """The fault's sound in the stored mix over the rest of the mix, dB: the stored audio less its re-render
-    without the anomaly's sound, against that re-render, in the fault's characteristic band
-    (`synth_audio.faults.fault_band`, at the faulty wheel's mean rotation rate) after the fault's onset."""
+def fault_span(trace: Trace, rate: int) -> tuple[int, tuple[float, float]] | None:
+    """(first audio sample at `rate` after the trace's fault onset, the fault's characteristic band in Hz
+    (`synth_audio.faults.fault_band` at the faulty wheel's mean rotation rate after onset)); None when the
+    fault starts after the trace ends."""
     fault = trace.faults[0]
-    mix = synth_audio.read(audio_file(folder)).samples
-    rate = muted.sample_rate
     after = trace.time >= fault.onset
     if not after.any():
-        return math.nan
+        return None
     rotation_hz = float(np.abs(trace.wheel_speed[after, fault.wheel]).mean()) / (2 * np.pi)
-    band = fault_band(fault, rotation_hz, rate)
-    start = min(round(fault.onset * rate), mix.shape[0])
+    return round(fault.onset * rate), fault_band(fault, rotation_hz, rate)
+
+
+def _fault_level(folder: Path, trace: Trace, muted: synth_audio.Audio) -> float:
+    """The fault's sound in the stored mix over the rest of the mix, dB: the stored audio less its re-render
+    without the anomaly's sound, against that re-render, in the fault's band after onset (`fault_span`)."""
+    span = fault_span(trace, muted.sample_rate)
+    if span is None:
+        return math.nan
+    start, band = span
+    mix = synth_audio.read(audio_file(folder)).samples[start:].astype(np.float64)
     rest = muted.samples[start:].astype(np.float64)
-    return signals.level_db(mix[start:].astype(np.float64) - rest, rest, rate, band)
+    return signals.level_db(mix - rest, rest, muted.sample_rate, band)
 
 
 def _concat(parts: list[Windows]) -> Windows:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from msvdd.contract import WINDOW_S
+from synth_audio.faults import band_power
 
 REVERSE_SPEED = 0.05
 """Forward speed below minus this counts as reversing, m/s."""
@@ -173,16 +174,7 @@ def repetition(
     return float(np.max(acf[lag0 : n // 2]))
 
 
-def band_power(x: np.ndarray, rate: float, band: tuple[float, float]) -> float:
-    """Energy of (n,) or (n, C) samples between band[0] (included) and band[1] (excluded) Hz, summed over the
-    channels: the sum of |rfft|^2 over the band's bins (Parseval up to the factor 2 / n of one-sided bins)."""
-    spectrum = np.abs(np.fft.rfft(np.asarray(x, dtype=np.float64), axis=0)) ** 2
-    freqs = np.fft.rfftfreq(np.asarray(x).shape[0], 1.0 / rate)
-    keep = (freqs >= band[0]) & (freqs < band[1])
-    return float(spectrum[keep].sum())
-
-
 def level_db(part: np.ndarray, rest: np.ndarray, rate: float, band: tuple[float, float]) -> float:
-    """Level of `part` over `rest` in `band`, dB (both (n, C) at `rate`)."""
+    """Level of `part` over `rest` in `band`, dB (both (n, C) at `rate`; `synth_audio.faults.band_power`)."""
     ratio = (band_power(part, rate, band) + _TINY) / (band_power(rest, rate, band) + _TINY)
     return float(10.0 * np.log10(ratio))

@@ -14,7 +14,6 @@ from benchmarks.audit.core import context_starts
 from benchmarks.audit.signals import (
     acceleration_peak,
     audio_levels,
-    band_power,
     behaviour,
     clipped,
     forward_speed,
@@ -23,6 +22,7 @@ from benchmarks.audit.signals import (
 )
 from benchmarks.cli import main
 from sim.vocab import COLLISION, NORMAL
+from synth_audio.faults import band_power
 
 
 def test_forward_speed_follows_the_heading() -> None:
@@ -154,10 +154,9 @@ def test_fault_level_isolates_the_fault_sound_as_its_stem_does(tiny_dataset: Pat
     import dataclasses
 
     import synth_audio
-    from benchmarks.audit.core import MUTED_ANOMALY_SOURCES, _fault_level
+    from benchmarks.audit.core import MUTED_ANOMALY_SOURCES, _fault_level, fault_span
     from benchmarks.dataset import episode_audio_config, open_dataset
     from benchmarks.episode import read_trace
-    from synth_audio.faults import fault_band
 
     data = open_dataset(tiny_dataset)
     specs = data.episode_specs()
@@ -169,10 +168,9 @@ def test_fault_level_isolates_the_fault_sound_as_its_stem_does(tiny_dataset: Pat
     )
     probe = _fault_level(tiny_dataset / episode, trace, muted)
     stems = synth_audio.render(trace, dataclasses.replace(config, stems=True), specs[episode].seed)
-    fault = trace.faults[0]
-    after = trace.time >= fault.onset
-    band = fault_band(fault, float(np.abs(trace.wheel_speed[after, fault.wheel]).mean()) / (2 * np.pi), 44100)
-    start = round(fault.onset * 44100)
+    span = fault_span(trace, 44100)
+    assert span is not None
+    start, band = span
     own = stems.stems["faults"][start:].astype(np.float64)
     rest = stems.samples[start:].astype(np.float64) - own
     assert math.isfinite(probe)

@@ -27,7 +27,7 @@ from sim import Fault, Trace, simulate
 from sim.scenario import Route, Scenario, Unit, Waypoint
 from sim.vocab import FAULT_KINDS
 from synth_audio import AudioConfig, render
-from synth_audio.faults import fault_band
+from synth_audio.faults import band_power, fault_band
 
 CRUISE = 0.8
 """Cruise speed of the calibration drive, m/s (the presets draw 0.3-1.4 m/s)."""
@@ -60,13 +60,6 @@ def trace(kind: str = "", severity: float = 0.0) -> Trace:
     return simulate(_scenario(kind, severity))
 
 
-def _band_power(x: np.ndarray, rate: float, band: tuple[float, float]) -> float:
-    spectrum = np.abs(np.fft.rfft(x, axis=0)) ** 2
-    f = np.fft.rfftfreq(x.shape[0], 1.0 / rate)
-    keep = (f >= band[0]) & (f < band[1])
-    return float(spectrum[keep].sum())
-
-
 @functools.cache
 def _stems(kind: str, severity: float) -> dict[str, np.ndarray]:
     """Robot-only stems of the calibration drive over the steady window, float64 (n, 2)."""
@@ -82,9 +75,9 @@ def audio_level_db(kind: str, severity: float) -> float:
     tr = trace(kind, severity)
     band = fault_band(tr.faults[0], _rotation_hz(tr), RATE)
     nominal = _stems("", 0.0)
-    fault = _band_power(_stems(kind, severity)["faults"], RATE, band)
+    fault = band_power(_stems(kind, severity)["faults"], RATE, band)
     healthy = nominal["motor"] + nominal["rolling"] + nominal["electronics"]
-    return 10.0 * np.log10(fault / _band_power(healthy, RATE, band))
+    return 10.0 * np.log10(fault / band_power(healthy, RATE, band))
 
 
 def _rotation_hz(tr: Trace) -> float:

@@ -10,7 +10,7 @@ from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 
-REC_SCORES = ("mean", "peak")
+REC_SCORES = ("mean", "peak", "mahalanobis")
 """Allowed `rec_score` values."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
@@ -48,7 +48,9 @@ class MSVDDConfig:
     """Weight of the scaled reconstruction loss in the anomaly score."""
     rec_score: str = "mean"
     """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
-    modalities) or "peak" (per modality its largest per-time-step error over its training mean, summed)."""
+    modalities), "peak" (per modality its largest per-time-step error over its training mean, summed) or
+    "mahalanobis" (per modality the largest Mahalanobis distance of a residual frame under a Gaussian of the
+    training residuals, `msvdd.residual`, over its training mean, summed)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4

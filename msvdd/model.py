@@ -44,12 +44,14 @@ from msvdd.losses import (
     svdd_loss,
 )
 from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
-from msvdd.network import AUDIO_STRIDES, FusionNet, NetOutput
+from msvdd.network import AUDIO_STRIDES, IMU_FRAME, FusionNet, NetOutput
+from msvdd.residual import FrameGaussian, fit_frame_gaussian, residual_frames
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Version of the file written by `MSVDD.save` (2: front-end choice and per-channel statistics, training
-history); `load` also reads version 1 (the paper's waveform and z-velocity), refuses any other."""
+history; 3: the residual frame Gaussians of `rec_score="mahalanobis"`); `load` also reads versions 1 (the
+paper's waveform and z-velocity) and 2, refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
@@ -97,6 +99,7 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
+        self.rec_gauss_: list[FrameGaussian] | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -233,8 +236,10 @@ class MSVDD(Detector):
         else:
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
+        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction:
+            self.rec_gauss_ = self._fit_residual_gaussians(train_t)
         d, parts = self._distance_and_parts(train_t)
-        if cfg.rec_score == "peak" and parts.shape[1]:
+        if cfg.rec_score != "mean" and parts.shape[1]:
             self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
         else:
             self.rec_scale_ = np.ones(parts.shape[1])
@@ -255,18 +260,47 @@ class MSVDD(Detector):
                 outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
         return torch.cat(outs)
 
-    def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
-        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
+    def _rec_pairs(
+        self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor
+    ) -> list[tuple[torch.Tensor, torch.Tensor, int, int, int]]:
+        """(input, reconstruction, time axis, steps per "peak" error, steps per residual frame) of each
+        reconstructed modality: the audio's error is taken per token, the IMU's per sample or per token."""
         cfg = self.config
         pairs = []
         if cfg.use_audio and out.audio_rec is not None:
             logmel = cfg.audio_frontend == "logmel"
-            pairs.append((audio, out.audio_rec, 2 if logmel else 1, 1 if logmel else AUDIO_SAMPLES_PER_TOKEN))
+            axis, token = (2, 1) if logmel else (1, AUDIO_SAMPLES_PER_TOKEN)
+            pairs.append((audio, out.audio_rec, axis, token, token))
         if cfg.use_imu and out.imu_rec is not None:
-            pairs.append((imu, out.imu_rec, 1, 1))
-        if cfg.rec_score == "mean":
-            return [huber_per_window(x, x_hat) for x, x_hat, _, _ in pairs]
-        return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block in pairs]
+            pairs.append((imu, out.imu_rec, 1, 1, IMU_FRAME))
+        return pairs
+
+    def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
+        pairs = self._rec_pairs(out, audio, imu)
+        if self.config.rec_score == "mean":
+            return [huber_per_window(x, x_hat) for x, x_hat, *_ in pairs]
+        if self.config.rec_score == "peak":
+            return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
+        if self.rec_gauss_ is None or len(self.rec_gauss_) != len(pairs):
+            raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
+        return [
+            g.peak_distance(residual_frames(x, x_hat, axis, frame))
+            for g, (x, x_hat, axis, _, frame) in zip(self.rec_gauss_, pairs, strict=True)
+        ]
+
+    def _fit_residual_gaussians(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> list[FrameGaussian]:
+        """One `FrameGaussian` per reconstructed modality over the residual frames of `tensors`."""
+        frames: list[list[torch.Tensor]] = []
+        with torch.inference_mode():
+            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
+                a, i = a.to(self.device), i.to(self.device)
+                pairs = self._rec_pairs(self.module.net(a, i), a, i)
+                frames = frames or [[] for _ in pairs]
+                for store, (x, x_hat, axis, _, frame) in zip(frames, pairs, strict=True):
+                    f = residual_frames(x, x_hat, axis, frame)
+                    store.append(f.reshape(-1, f.shape[2]))
+        return [fit_frame_gaussian(torch.cat(store)) for store in frames]
 
     def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
@@ -334,6 +368,7 @@ class MSVDD(Detector):
             "mean_d": self.mean_d_,
             "mean_rec": self.mean_rec_,
             "rec_scale": torch.from_numpy(np.asarray(self.rec_scale_, dtype=np.float64)),
+            "rec_gauss": None if self.rec_gauss_ is None else [g.state() for g in self.rec_gauss_],
             "threshold": self.threshold_,
             "threshold_source": self.threshold_source_,
             "history": None if self.history_ is None else self.history_.to_dict(),
@@ -370,10 +405,9 @@ class MSVDD(Detector):
         if not isinstance(payload, dict) or payload.get("format") != _FORMAT_NAME:
             raise ModelFormatError(f"{source} is not an M-SVDD model file")
         version = payload.get("format_version")
-        if version not in (1, FORMAT_VERSION):
+        if version not in (1, 2, FORMAT_VERSION):
             raise ModelFormatError(
-                f"{source} has model format version {version}; "
-                f"this code reads versions 1 and {FORMAT_VERSION}"
+                f"{source} has model format version {version}; this code reads versions 1 to {FORMAT_VERSION}"
             )
         with model_fields(source):
             return cls._from_payload(payload, version, device)
@@ -396,6 +430,8 @@ class MSVDD(Detector):
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
+        if model.config.rec_score == "mahalanobis" and model.config.use_reconstruction:
+            model.rec_gauss_ = [FrameGaussian.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)

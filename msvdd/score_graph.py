@@ -14,7 +14,8 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
 4. D = ||L^-1 (z - mu)||, L the Cholesky factor of the fitted Sigma (L^-1 stored: the inverse covariance as
    Sigma^-1 = L^-T L^-1), in float64 like `msvdd.mcd.mahalanobis`; the Euclidean ablation stores mu = c and
    L^-1 = I.
-5. The reconstruction term (mean or peak Huber error per modality, over `rec_scale_`, summed) and
+5. The reconstruction term (mean or peak Huber error per modality, or the largest Mahalanobis distance of
+   a residual frame under the model's `msvdd.residual.FrameGaussian`, over `rec_scale_`, summed) and
    delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
@@ -53,7 +54,8 @@ from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
 from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, MSVDD, NotFittedError
-from msvdd.network import AudioDecoder, AudioEncoder
+from msvdd.network import IMU_FRAME, AudioDecoder, AudioEncoder
+from msvdd.residual import residual_frames
 
 
 def _f32(x: np.ndarray) -> torch.Tensor:
@@ -344,7 +346,7 @@ class ScoreGraph(nn.Module):
         self.logmel_input = cfg.audio_frontend == "logmel"
         self.imu_all = cfg.imu_input == "all"
         self.use_reconstruction = cfg.use_reconstruction
-        self.peak = cfg.rec_score != "mean"
+        self.rec_score = cfg.rec_score
         net = copy.deepcopy(model.module.net).cpu().eval()
         _export_lstms(net)
         self.audio_encoder = (
@@ -381,6 +383,18 @@ class ScoreGraph(nn.Module):
         self.register_buffer("mu", model.mu_.detach().cpu().to(torch.float64).reshape(1, -1))
         self.register_buffer("whiten", torch.linalg.solve_triangular(chol, eye, upper=False).T.contiguous())
         self.register_buffer("rec_scale", _f64(np.asarray(model.rec_scale_, dtype=np.float64)))
+        gauss = model.rec_gauss_ if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction else None
+        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction and gauss is None:
+            raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
+        # The residual frame Gaussians, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
+        gauss_mod = [m for m, used in (("audio", self.audio_decoder), ("imu", self.imu_decoder)) if used]
+        self.frame_mean = nn.ParameterDict()
+        self.frame_whiten = nn.ParameterDict()
+        for name, g in zip(gauss_mod if gauss else [], gauss or [], strict=True):
+            self.frame_mean[name] = nn.Parameter(g.mean.detach().cpu().to(torch.float64), requires_grad=False)
+            self.frame_whiten[name] = nn.Parameter(
+                g.whiten.detach().cpu().to(torch.float64), requires_grad=False
+            )
         mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 
@@ -401,10 +415,21 @@ class ScoreGraph(nn.Module):
         channels = torch.cat([imu.unsqueeze(1), imu6.transpose(1, 2)], dim=1)
         return self.imu_smoother(channels.unsqueeze(2)).flatten(2).transpose(1, 2)
 
+    def frame_distance(self, name: str, frames: torch.Tensor) -> torch.Tensor:
+        """(N,) largest Mahalanobis distance of the residual frames (N, T, p) of modality `name`."""
+        y = (frames.to(torch.float64) - self.frame_mean[name]) @ self.frame_whiten[name]
+        return torch.sqrt((y * y).sum(dim=2)).amax(dim=1)
+
     def audio_error(self, a: torch.Tensor, a_rec: torch.Tensor) -> torch.Tensor:
         """(N,) reconstruction error of the audio input, as `MSVDD.rec_parts` measures it."""
+        if self.rec_score == "mahalanobis":
+            if self.logmel_input:  # (N, 2, T, M): frames of both channels' bands
+                return self.frame_distance("audio", residual_frames(a, a_rec, 2, 1))
+            # (N, 2, 1, L) -> (N, L, 2), the model's layout: frames of 180 samples of both channels
+            x, x_rec = a.squeeze(2).transpose(1, 2), a_rec.squeeze(2).transpose(1, 2)
+            return self.frame_distance("audio", residual_frames(x, x_rec, 1, AUDIO_SAMPLES_PER_TOKEN))
         err = huber(a, a_rec)  # log-mel (N, 2, T, M) or waveform (N, 2, 1, L)
-        if not self.peak:
+        if self.rec_score == "mean":
             return err.mean(dim=(1, 2, 3))
         if self.logmel_input:
             return block_peak(err, 2, 1)
@@ -412,8 +437,10 @@ class ScoreGraph(nn.Module):
 
     def imu_error(self, i: torch.Tensor, i_rec: torch.Tensor) -> torch.Tensor:
         """(N,) reconstruction error of the IMU input, as `MSVDD.rec_parts` measures it."""
+        if self.rec_score == "mahalanobis":
+            return self.frame_distance("imu", residual_frames(i, i_rec, 1, IMU_FRAME))
         err = huber(i, i_rec)  # (N, 400) or (N, 400, 7)
-        if not self.peak:
+        if self.rec_score == "mean":
             return err.mean(dim=tuple(range(1, err.dim())))
         return (err.mean(dim=2) if err.dim() == 3 else err).amax(dim=1)
 

@@ -156,6 +156,8 @@ def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> Non
         {"fusion": "concat"},
         {"audio_frontend": "logmel", "rec_score": "mean"},
         {"imu_input": "all", "rec_score": "peak", "smooth_window": 0},
+        {"rec_score": "mahalanobis"},
+        {"use_audio": False, "rec_score": "mahalanobis"},
     ],
     ids=lambda o: "-".join(f"{k}={v}" for k, v in o.items()),
 )

@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from scipy.spatial.distance import mahalanobis
+from sklearn.covariance import LedoitWolf
 from sklearn.metrics import roc_auc_score
 
 from msvdd.config import MSVDDConfig
@@ -229,3 +231,42 @@ def test_peak_reconstruction_score_is_in_units_of_training_means(
     assert model.rec_scale_.shape == (2,) and np.all(model.rec_scale_ > 0)
     d, rec = model.score_components(toy_test[0])
     np.testing.assert_allclose(model.score(toy_test[0]), d + (model.mean_d_ / model.mean_rec_) * rec)
+
+
+def test_mahalanobis_reconstruction_term_by_hand(
+    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    cfg = MSVDDConfig.smoke(
+        epochs=1, audio_frontend="logmel", imu_input="all", rec_score="mahalanobis", w=1.0, val_fraction=0.0
+    )
+    model = MSVDD(cfg).fit(toy_train)
+    # One Gaussian per modality: a log-mel frame is 2 channels x 32 bands, an IMU frame 8 samples x 7 axes.
+    assert model.rec_gauss_ is not None
+    assert [g.mean.shape[0] for g in model.rec_gauss_] == [64, 56]
+    _, rec = model.score_components(toy_train)  # each modality in units of its training mean
+    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
+
+    # The IMU's term by hand: the residual's 8-sample frames of the training windows, scikit-learn's
+    # Ledoit-Wolf covariance, scipy's Mahalanobis distance, the largest over each window's frames.
+    def imu_frames(batch: Windows) -> np.ndarray:
+        a, i = model._tensors(batch)
+        with torch.inference_mode():
+            out = model.module.net(a, i)
+        assert out.imu_rec is not None
+        return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
+
+    peer = LedoitWolf().fit(imu_frames(toy_train).reshape(-1, 56))
+    precision = np.linalg.inv(peer.covariance_)
+    test = toy_test[0].subset(slice(0, 4))
+    want = [max(mahalanobis(f, peer.location_, precision) for f in w) for w in imu_frames(test)]
+    _, parts = model._distance_and_parts(model._tensors(test))
+    np.testing.assert_allclose(parts[:, 1], want, rtol=1e-5)
+    # Persistence, and a file without the Gaussians is refused naming the field.
+    path = tmp_path / "m.pt"
+    model.save(path)
+    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
+    payload = torch.load(path, weights_only=True)
+    del payload["rec_gauss"]
+    torch.save(payload, path)
+    with pytest.raises(ModelFormatError, match="field 'rec_gauss' is missing"):
+        MSVDD.load(path)

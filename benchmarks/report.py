@@ -81,8 +81,10 @@ REFERENCE: tuple[tuple[str, str], ...] = (
     ("gaussian-early", "Gaussian, log-mel + IMU statistics"),
     ("gaussian-audio", "Gaussian, log-mel statistics"),
     ("gaussian-imu", "Gaussian, IMU statistics"),
+    ("gaussian-frames", "Gaussian, log-mel and IMU frames (largest frame distance)"),
 )
-"""The audit's reference detector: a Ledoit-Wolf Gaussian on fixed window statistics (no learning)."""
+"""The reference detectors (no learning): the audit's Ledoit-Wolf Gaussian on fixed window statistics, and
+the frame-wise Gaussian of M-SVDD's input frames (`msvdd`'s reconstruction term without the network)."""
 
 TOO_EASY_AUC = 0.9
 """A naive baseline at or above this AUC means the benchmark is too easy, and the report says so."""

@@ -8,6 +8,7 @@ save_detector(det, "iforest-early", "runs/x/model"); name, det = load_detector("
 from benchmarks.methods import dcase_ae as _dcase_ae
 from benchmarks.methods import deep as _deep
 from benchmarks.methods import deep_if as _deep_if
+from benchmarks.methods import frames as _frames
 from benchmarks.methods import gaussian as _gaussian
 from benchmarks.methods import msvdd_family as _msvdd
 from benchmarks.methods import naive as _naive
@@ -32,6 +33,7 @@ _deep.register_methods()
 _deep_if.register_methods()
 _dcase_ae.register_methods()
 _gaussian.register_methods()
+_frames.register_methods()
 
 __all__ = [
     "FAMILIES",

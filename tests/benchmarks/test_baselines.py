@@ -200,7 +200,12 @@ def test_registry_lists_every_family_of_the_paper() -> None:
     assert {"msvdd", "msvdd-euclidean", "msvdd-s64"} <= set(by_family["msvdd"])
     assert set(by_family["deep"]) == {"dsvdd", "dae", "vae-svdd", "dagmm", "deep-if", "dcase-ae"}
     assert len(by_family["shallow"]) == 6
-    assert set(by_family["reference"]) == {"gaussian-early", "gaussian-audio", "gaussian-imu"}
+    assert set(by_family["reference"]) == {
+        "gaussian-early",
+        "gaussian-audio",
+        "gaussian-imu",
+        "gaussian-frames",
+    }
     assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
 
 

@@ -421,7 +421,8 @@ def markdown(
         "",
         *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS, intervals),
         "",
-        "## Reference detector (the audit's: a Gaussian on fixed window statistics)",
+        "## Reference detectors (no learning: Gaussians on fixed window statistics, the audit's, and on input"
+        " frames)",
         "",
         *_table(REFERENCE, per_method, _MAIN_COLUMNS, intervals),
         "",

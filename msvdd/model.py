@@ -2,11 +2,12 @@
 
 fit: z-score statistics from the training windows; train the network with
 alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
-and Sigma by MCD over the embeddings of the whole training split, the training means of D and L_Rec, and the
-score delta = D + w (mean_D / mean_Rec) L_Rec; the threshold follows the rule of `msvdd.contract.Detector`
-(the `quantile` of the scores of held-out nominal windows). No test label is ever seen. With
-`use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD around a fixed
-centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
+and Sigma by MCD over the embeddings of the whole training split (with `rec_score="mahalanobis"` also the
+Gaussians of the training windows' residual frames, `msvdd.residual`), the training means of D and Rec, and
+the score delta = D + w (mean_D / mean_Rec) Rec, Rec the reconstruction term `rec_score` names; the threshold
+follows the rule of `msvdd.contract.Detector` (the `quantile` of the scores of held-out nominal windows). No
+test label is ever seen. With `use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary
+Deep SVDD around a fixed centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
 """
 
 from __future__ import annotations

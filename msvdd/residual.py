@@ -20,12 +20,17 @@ _BLOCK = 65536
 """Frames per block of the covariance sums."""
 
 
-def residual_frames(x: torch.Tensor, x_hat: torch.Tensor, time_axis: int, block: int) -> torch.Tensor:
-    """(N, T, p) residual frames of `x - x_hat`: `block` consecutive steps of `time_axis` with everything
-    but the batch flattened into each frame (time step major); a remainder shorter than a block is dropped."""
-    r = (x - x_hat).movedim(time_axis, 1)
+def cut_frames(x: torch.Tensor, time_axis: int, block: int) -> torch.Tensor:
+    """(N, T, p) frames of `x`: `block` consecutive steps of `time_axis` with everything but the batch
+    flattened into each frame (time step major); a remainder shorter than a block is dropped."""
+    r = x.movedim(time_axis, 1)
     steps = r.shape[1] // block
     return r[:, : steps * block].reshape(r.shape[0], steps, -1)
+
+
+def residual_frames(x: torch.Tensor, x_hat: torch.Tensor, time_axis: int, block: int) -> torch.Tensor:
+    """(N, T, p) frames (`cut_frames`) of the residual `x - x_hat`."""
+    return cut_frames(x - x_hat, time_axis, block)
 
 
 @dataclass(frozen=True)

@@ -383,18 +383,17 @@ class ScoreGraph(nn.Module):
         self.register_buffer("mu", model.mu_.detach().cpu().to(torch.float64).reshape(1, -1))
         self.register_buffer("whiten", torch.linalg.solve_triangular(chol, eye, upper=False).T.contiguous())
         self.register_buffer("rec_scale", _f64(np.asarray(model.rec_scale_, dtype=np.float64)))
-        gauss = model.rec_gauss_ if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction else None
-        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction and gauss is None:
-            raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
         # The residual frame Gaussians, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
-        gauss_mod = [m for m, used in (("audio", self.audio_decoder), ("imu", self.imu_decoder)) if used]
         self.frame_mean = nn.ParameterDict()
         self.frame_whiten = nn.ParameterDict()
-        for name, g in zip(gauss_mod if gauss else [], gauss or [], strict=True):
-            self.frame_mean[name] = nn.Parameter(g.mean.detach().cpu().to(torch.float64), requires_grad=False)
-            self.frame_whiten[name] = nn.Parameter(
-                g.whiten.detach().cpu().to(torch.float64), requires_grad=False
-            )
+        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction:
+            if model.rec_gauss_ is None:
+                raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
+            decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
+            names = [name for name, decoder in decoders if decoder is not None]
+            for name, g in zip(names, model.rec_gauss_, strict=True):
+                self.frame_mean[name] = nn.Parameter(g.mean.detach().cpu().double(), requires_grad=False)
+                self.frame_whiten[name] = nn.Parameter(g.whiten.detach().cpu().double(), requires_grad=False)
         mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 

@@ -20,7 +20,7 @@ from benchmarks.methods.base import WindowDetector
 from msvdd.contract import Windows
 from msvdd.frontend import InputNormalizer
 from msvdd.network import IMU_FRAME
-from msvdd.residual import FrameGaussian, fit_frame_gaussian, residual_frames
+from msvdd.residual import FrameGaussian, cut_frames, fit_frame_gaussian
 
 _CPU = torch.device("cpu")
 _BATCH = 512
@@ -29,10 +29,7 @@ _BATCH = 512
 
 def _frames(audio: torch.Tensor, imu: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Normalised log-mel (N, 2, T, M) and IMU (N, 400, 7) -> their frames (N, T, 64) and (N, 50, 56)."""
-    return (
-        residual_frames(audio, torch.zeros_like(audio), 2, 1),
-        residual_frames(imu, torch.zeros_like(imu), 1, IMU_FRAME),
-    )
+    return cut_frames(audio, 2, 1), cut_frames(imu, 1, IMU_FRAME)
 
 
 class FrameReference(WindowDetector):

@@ -22,7 +22,6 @@ from msvdd.frontend import InputNormalizer
 from msvdd.network import IMU_FRAME
 from msvdd.residual import FrameGaussian, cut_frames, fit_frame_gaussian
 
-_CPU = torch.device("cpu")
 _BATCH = 512
 """Windows per block of the front end (bounds the memory of the log-mel spectrograms)."""
 
@@ -81,12 +80,9 @@ class FrameReference(WindowDetector):
         detector.normalizer = InputNormalizer.from_arrays(arrays, "logmel", "all")
         detector.scale = np.asarray(arrays["scale"], dtype=np.float64)
         detector.gauss = [
-            FrameGaussian.from_state(
-                {
-                    "mean": torch.from_numpy(arrays[f"frame_{n}_mean"]),
-                    "whiten": torch.from_numpy(arrays[f"frame_{n}_whiten"]),
-                },
-                _CPU,
+            FrameGaussian(
+                mean=torch.from_numpy(arrays[f"frame_{n}_mean"]).double(),
+                whiten=torch.from_numpy(arrays[f"frame_{n}_whiten"]).double(),
             )
             for n in ("audio", "imu")
         ]

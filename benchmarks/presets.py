@@ -133,6 +133,7 @@ TABLE1_METHODS: tuple[str, ...] = (
     "svdd-late",
     "gaussian-early",
     "gaussian-frames",
+    "mixture-frames",
     "audio-rms",
     "imu-kurtosis",
 )

@@ -1,15 +1,21 @@
-"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network) against scikit-learn, scipy."""
+"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network) and `mixture-frames` against
+scikit-learn, scipy."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scipy.spatial.distance import mahalanobis
+from scipy.special import logsumexp
+from scipy.stats import multivariate_normal
 from sklearn.covariance import LedoitWolf
+from sklearn.mixture import GaussianMixture
 
 from benchmarks import methods
-from benchmarks.methods.frames import FrameReference
+from benchmarks.methods.frames import MIXTURE_COMPONENTS, MIXTURE_REG, FrameReference, MixtureFrameReference
+from msvdd.contract import WindowError
 from msvdd.frontend import InputNormalizer
 from msvdd.synthetic import toy_windows
 
@@ -45,3 +51,65 @@ def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
     assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
     det.save(tmp_path / "m.npz")
     np.testing.assert_array_equal(FrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
+
+
+def _input_frames(norm: InputNormalizer, batch: object) -> list[np.ndarray]:
+    """msvdd's normalised inputs cut into log-mel frames (67 x 64) and IMU frames (50 x 56), float64."""
+    audio, imu = norm.tensors(batch)  # type: ignore[arg-type]
+    n = audio.shape[0]
+    return [
+        audio.permute(0, 2, 1, 3).reshape(n, 67, 64).numpy().astype(np.float64),
+        imu.reshape(n, 50, 56).numpy().astype(np.float64),
+    ]
+
+
+def test_mixture_scores_are_standardised_peak_negative_log_likelihoods(tmp_path: Path) -> None:
+    train, _ = toy_windows(40, 0, seed=3)
+    test, labels = toy_windows(3, 3, seed=4)
+    det = methods.make("mixture-frames", seed=5, scale="smoke").fit(train)
+    assert isinstance(det, MixtureFrameReference)
+    assert [m.n_components for m in det.mixtures] == [MIXTURE_COMPONENTS, MIXTURE_COMPONENTS]
+    # By hand: each frame's mixture density from scipy's multivariate normal with the fitted weights, means
+    # and covariances (log-sum-exp over components); per modality the largest negative log-likelihood of a
+    # window, standardised with the training windows' mean and standard deviation; summed.
+    norm = InputNormalizer.fit(train, "logmel", "all")
+    want = np.zeros(len(test))
+    for m, tr, te in zip(det.mixtures, _input_frames(norm, train), _input_frames(norm, test), strict=True):
+
+        def peak(x: np.ndarray, m: GaussianMixture = m) -> np.ndarray:
+            flat = x.reshape(-1, x.shape[2])
+            logp = np.stack(
+                [
+                    np.log(w) + multivariate_normal(mu, c).logpdf(flat)
+                    for w, mu, c in zip(m.weights_, m.means_, m.covariances_, strict=True)
+                ]
+            )
+            return (-logsumexp(logp, axis=0)).reshape(x.shape[:2]).max(axis=1)
+
+        p_tr = peak(tr)
+        want += (peak(te) - p_tr.mean()) / p_tr.std()
+    np.testing.assert_allclose(det.score(test), want, rtol=1e-6, atol=1e-6)
+    assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
+    det.save(tmp_path / "m.npz")
+    np.testing.assert_array_equal(MixtureFrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
+    again = methods.make("mixture-frames", seed=5, scale="smoke").fit(train)
+    np.testing.assert_array_equal(again.score(test), det.score(test))  # the seed fixes the fit
+
+
+def test_one_component_is_the_maximum_likelihood_gaussian() -> None:
+    train, _ = toy_windows(20, 0, seed=6)
+    det = MixtureFrameReference(seed=0, components=1).fit(train)
+    norm = InputNormalizer.fit(train, "logmel", "all")
+    for m, frames in zip(det.mixtures, _input_frames(norm, train), strict=True):
+        flat = frames.reshape(-1, frames.shape[2])
+        np.testing.assert_allclose(m.means_[0], flat.mean(axis=0), atol=1e-9)
+        want = np.cov(flat, rowvar=False, bias=True) + MIXTURE_REG * np.eye(flat.shape[1])
+        np.testing.assert_allclose(m.covariances_[0], want, atol=1e-9)
+
+
+def test_mixture_needs_as_many_frames_as_components() -> None:
+    train, _ = toy_windows(2, 0, seed=6)  # 2 x 67 log-mel frames
+    with pytest.raises(WindowError, match="at least 200 training frames per modality; got 134"):
+        MixtureFrameReference(seed=0, components=200).fit(train)
+    with pytest.raises(ValueError, match="components = 0 is invalid"):
+        MixtureFrameReference(components=0)

@@ -73,19 +73,18 @@ class FrameReference(WindowDetector):
         ]
         return [torch.cat([b[m] for b in blocks]) for m in range(2)]
 
-    def _distances(self, batch: Windows) -> np.ndarray:
+    def _peaks(self, frames: list[torch.Tensor]) -> np.ndarray:
         """(N, 2) each modality's largest frame distance."""
-        frames = self._modality_frames(batch)
         return np.stack([g.peak_distance(f).numpy() for g, f in zip(self.gauss, frames, strict=True)], axis=1)
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
         self.normalizer = InputNormalizer.fit(train, "logmel", "all")
         frames = self._modality_frames(train)
         self.gauss = [fit_frame_gaussian(f.reshape(-1, f.shape[2])) for f in frames]
-        self.scale = self._distances(train).mean(axis=0)
+        self.scale = self._peaks(frames).mean(axis=0)
 
     def _score(self, batch: Windows) -> np.ndarray:
-        return (self._distances(batch) / self.scale).sum(axis=1)
+        return (self._peaks(self._modality_frames(batch)) / self.scale).sum(axis=1)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         if self.normalizer is None:
@@ -125,10 +124,10 @@ class MixtureFrameReference(FrameReference):
         self.mixtures: list[GaussianMixture] = []
         self.offset = np.zeros(2)
 
-    def _distances(self, batch: Windows) -> np.ndarray:
+    def _peaks(self, frames: list[torch.Tensor]) -> np.ndarray:
         """(N, 2) each modality's largest frame negative log-likelihood."""
         out = []
-        for mixture, f in zip(self.mixtures, self._modality_frames(batch), strict=True):
+        for mixture, f in zip(self.mixtures, frames, strict=True):
             n, t, d = f.shape
             nll = -mixture.score_samples(f.reshape(-1, d).numpy().astype(np.float64))
             out.append(nll.reshape(n, t).max(axis=1))
@@ -140,7 +139,8 @@ class MixtureFrameReference(FrameReference):
         self.normalizer = InputNormalizer.fit(train, "logmel", "all")
         rng = np.random.default_rng(self.seed)
         self.mixtures = []
-        for f in self._modality_frames(train):
+        frames = self._modality_frames(train)
+        for f in frames:
             x = f.reshape(-1, f.shape[2]).numpy().astype(np.float64)
             if len(x) > MIXTURE_FRAMES:
                 x = x[np.sort(rng.choice(len(x), MIXTURE_FRAMES, replace=False))]
@@ -153,12 +153,12 @@ class MixtureFrameReference(FrameReference):
                 self.components, covariance_type="full", reg_covar=MIXTURE_REG, random_state=self.seed
             )
             self.mixtures.append(mixture.fit(x))
-        peaks = self._distances(train)
+        peaks = self._peaks(frames)
         self.offset = peaks.mean(axis=0)
         self.scale = np.maximum(peaks.std(axis=0), 1e-12)
 
     def _score(self, batch: Windows) -> np.ndarray:
-        return ((self._distances(batch) - self.offset) / self.scale).sum(axis=1)
+        return ((self._peaks(self._modality_frames(batch)) - self.offset) / self.scale).sum(axis=1)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         if self.normalizer is None:

@@ -20,6 +20,16 @@ from msvdd.frontend import InputNormalizer
 from msvdd.synthetic import toy_windows
 
 
+def _input_frames(norm: InputNormalizer, batch: object) -> list[np.ndarray]:
+    """msvdd's normalised inputs cut into log-mel frames (67 x 64) and IMU frames (50 x 56), float64."""
+    audio, imu = norm.tensors(batch)  # type: ignore[arg-type]
+    n = audio.shape[0]
+    return [
+        audio.permute(0, 2, 1, 3).reshape(n, 67, 64).numpy().astype(np.float64),
+        imu.reshape(n, 50, 56).numpy().astype(np.float64),
+    ]
+
+
 def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
     train, _ = toy_windows(40, 0, seed=3)
     test, labels = toy_windows(3, 3, seed=4)
@@ -29,17 +39,8 @@ def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
     # frames (7 axes); per modality scikit-learn's Ledoit-Wolf Gaussian of the training frames, scipy's
     # Mahalanobis distance, the largest over a window's frames, over its training mean; summed.
     norm = InputNormalizer.fit(train, "logmel", "all")
-
-    def frames(batch: object) -> list[np.ndarray]:
-        audio, imu = norm.tensors(batch)  # type: ignore[arg-type]
-        n = audio.shape[0]
-        return [
-            audio.permute(0, 2, 1, 3).reshape(n, 67, 64).numpy().astype(np.float64),
-            imu.reshape(n, 50, 56).numpy().astype(np.float64),
-        ]
-
     want = np.zeros(len(test))
-    for tr, te in zip(frames(train), frames(test), strict=True):
+    for tr, te in zip(_input_frames(norm, train), _input_frames(norm, test), strict=True):
         peer = LedoitWolf().fit(tr.reshape(-1, tr.shape[2]))
         precision = np.linalg.inv(peer.covariance_)
 
@@ -51,16 +52,6 @@ def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
     assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
     det.save(tmp_path / "m.npz")
     np.testing.assert_array_equal(FrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
-
-
-def _input_frames(norm: InputNormalizer, batch: object) -> list[np.ndarray]:
-    """msvdd's normalised inputs cut into log-mel frames (67 x 64) and IMU frames (50 x 56), float64."""
-    audio, imu = norm.tensors(batch)  # type: ignore[arg-type]
-    n = audio.shape[0]
-    return [
-        audio.permute(0, 2, 1, 3).reshape(n, 67, 64).numpy().astype(np.float64),
-        imu.reshape(n, 50, 56).numpy().astype(np.float64),
-    ]
 
 
 def test_mixture_scores_are_standardised_peak_negative_log_likelihoods(tmp_path: Path) -> None:

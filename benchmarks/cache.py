@@ -27,7 +27,7 @@ from benchmarks.dataset import DATASET_FORMAT_VERSION, DatasetError, generate, o
 from benchmarks.episode import software_versions
 from benchmarks.errors import check_seed
 from benchmarks.executor import Executor
-from benchmarks.presets import get_preset
+from benchmarks.presets import Preset, get_preset
 
 KEY_LENGTH = 16
 """Hex digits of the key in a cache entry's folder name."""
@@ -52,30 +52,37 @@ def _package_files(name: str) -> list[Path]:
     return found
 
 
-def generator_digest() -> str:
-    """sha256 over the relative path and bytes of every file of the code that generates datasets."""
+def source_digest(packages: tuple[str, ...], modules: tuple[str, ...], files: tuple[Path, ...] = ()) -> str:
+    """sha256 over the relative path and bytes of every file of `packages`, `modules` and `files`."""
     digest = hashlib.sha256()
     entries: list[tuple[str, Path]] = []
-    for name in _GENERATOR_PACKAGES:
+    for name in packages:
         module = importlib.import_module(name)
         roots = [Path(f) for f in getattr(module, "__path__", [])]
         for path in _package_files(name):
             root = next(r for r in roots if path.is_relative_to(r))
             entries.append((f"{name}/{path.relative_to(root).as_posix()}", path))
-    for name in _GENERATOR_MODULES:
+    for name in modules:
         file = importlib.import_module(name).__file__
         assert file is not None
         entries.append((name, Path(file)))
+    entries += [(f"file:{path.name}", Path(path)) for path in files]
     for label, path in sorted(entries, key=lambda e: e[0]):
         digest.update(label.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
 
 
-def cache_key(preset_name: str, seed: int) -> str:
-    """The key of a preset and seed's cache entry for this software (see the module docstring)."""
+def generator_digest() -> str:
+    """sha256 over the relative path and bytes of every file of the code that generates datasets."""
+    return source_digest(_GENERATOR_PACKAGES, _GENERATOR_MODULES)
+
+
+def cache_key(preset: str | Preset, seed: int) -> str:
+    """The key of a preset and seed's dataset for this software (see the module docstring); a `Preset`
+    object (a sweep point's) is keyed by its recipe like a registered one."""
     recipe = {
         "format_version": DATASET_FORMAT_VERSION,
-        "preset": dataclasses.asdict(get_preset(preset_name)),
+        "preset": dataclasses.asdict(get_preset(preset) if isinstance(preset, str) else preset),
         "seed": seed,
         "software": software_versions(),
         "generator": generator_digest(),

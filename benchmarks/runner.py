@@ -6,23 +6,27 @@ import datetime
 import os
 import platform
 import shutil
-import tempfile
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks import methods
-from benchmarks.cache import cached_dataset
+from benchmarks.cache import cache_key, cached_dataset
 from benchmarks.dataset import Dataset, check_dev, generate, open_dataset
 from benchmarks.errors import OutputExistsError, UserError, check_seed
 from benchmarks.executor import Executor
+from benchmarks.methods._io import write_text_atomic
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
 from benchmarks.report import RunInfo, write_report
+from benchmarks.resume import TRAINING_FILE, finished_training, partial_folder, record_training, training_key
 from msvdd.contract import Windows
 
+DATASET_KEY_FILE = "dataset.key"
+"""Beside the dataset a run generated, in its partial folder: the dataset's `cache_key`, for `--resume`."""
 DEFAULT_PRESET = "quick"
 """The dataset preset of `run` and `demo` when neither --preset nor --data names one."""
 
@@ -57,46 +61,83 @@ def run_benchmark(
     device: str = "cpu",
     executor: Executor | None = None,
     preset: Preset | None = None,
+    resume: bool = False,
 ) -> Path:
     """Generate (or reuse) a dataset, train every method for every seed, evaluate, and write the report.
 
-    Everything is written into a temporary folder beside `out` and renamed into place at the end, so an
-    interrupted run leaves no folder that looks complete. `dev` names the dev dataset the methods'
-    choices were made on (checked against the evaluated one and recorded in the report). With `data`, the
-    preset and dataset seed are the dataset's (`preset_name` and `seed`, when given, must agree with it);
-    without, they default to `DEFAULT_PRESET` and 0. With `cache` (not with `data`), the dataset is taken
-    from that cache folder, generated there first if needed (`benchmarks.cache`). `device` is where the
-    torch methods train and score; `progress` shows every bar, training ones included. `executor` builds
-    the episodes of a generated dataset (default: local processes, `workers` of them). `preset`, instead of
-    `preset_name`, is a preset that is not registered (a sweep point's; not with `data` or `cache`).
+    Everything is written into `.<out>.partial/` beside `out` and renamed into place at the end, so an
+    interrupted run leaves no folder that looks complete; it keeps the models it finished there, and the
+    same run with `resume` reuses them (`benchmarks.resume`); without `resume`, such a folder is refused.
+    `dev` names the dev dataset the methods' choices were made on (checked against the evaluated one and
+    recorded in the report). With `data`, the preset and dataset seed are the dataset's (`preset_name` and
+    `seed`, when given, must agree with it); without, they default to `DEFAULT_PRESET` and 0. With `cache`
+    (not with `data`), the dataset is taken from that cache folder, generated there first if needed
+    (`benchmarks.cache`). `device` is where the torch methods train and score; `progress` shows every bar,
+    training ones included. `executor` builds the episodes of a generated dataset (default: local
+    processes, `workers` of them). `preset`, instead of `preset_name`, is a preset that is not registered (a
+    sweep point's; not with `data` or `cache`).
     Returns `out`.
     """
     out = Path(out)
     _check_arguments(out, preset_name=preset_name, data=data, cache=cache, preset=preset)
+    tmp = partial_folder(out)
+    if tmp.exists() and not resume:
+        raise OutputExistsError(
+            f"an interrupted run left {tmp} (the models it finished): run again with --resume to reuse "
+            "them, or remove it"
+        )
     plan = _plan(preset_name, seed, method_names, data, scale, seeds, preset)
     if cache is not None:
         data, reused = cached_dataset(
             Path(cache), plan.preset.name, plan.seed, workers=workers, progress=progress, executor=executor
         )
         print(f"{'reusing' if reused else 'generated'} cached dataset {data}", flush=True)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    tmp.mkdir(parents=True, exist_ok=True)
     try:
-        if data is None:
-            data_path = generate(
-                plan.preset, plan.seed, tmp / "dataset", workers=workers, progress=progress, executor=executor
-            )
-        else:
-            data_path = Path(data)
+        data_path = (
+            Path(data) if data is not None else _generated_dataset(tmp, plan, workers, progress, executor)
+        )
         # a cache entry was verified just now
         dataset = open_dataset(data_path, verify=cache is None, progress=progress)
         dataset_text = str(data_path if data is not None else out / "dataset")
         _train_and_report(tmp, dataset, dataset_text, plan, dev, command, device, progress)
+        (tmp / DATASET_KEY_FILE).unlink(missing_ok=True)
         os.replace(tmp, out)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        _keep_finished(tmp)
         raise
     return out
+
+
+def _generated_dataset(
+    tmp: Path, plan: _Plan, workers: int | None, progress: bool, executor: Executor | None
+) -> Path:
+    """The run's own dataset in `tmp`: one an interrupted run generated with the same recipe, seed and
+    generating code (`benchmarks.cache.cache_key`, kept beside it), or a new one."""
+    data_path, key_file = tmp / "dataset", tmp / DATASET_KEY_FILE
+    key = cache_key(plan.preset, plan.seed)
+    if data_path.exists():
+        if key_file.is_file() and key_file.read_text().strip() == key:
+            return data_path
+        print(f"{data_path} was generated by other code or settings; generating it again", flush=True)
+        shutil.rmtree(data_path)
+    generate(plan.preset, plan.seed, data_path, workers=workers, progress=progress, executor=executor)
+    write_text_atomic(key_file, key + "\n")
+    return data_path
+
+
+def _keep_finished(tmp: Path) -> None:
+    """After a failure: keep `tmp` if it holds finished models or a generated dataset, else remove it."""
+    finished = list(tmp.glob(f"models/*/{TRAINING_FILE}"))
+    if not finished and not (tmp / "dataset").is_dir():
+        shutil.rmtree(tmp, ignore_errors=True)
+        return
+    print(
+        f"run stopped: {len(finished)} finished model(s) kept in {tmp}; the same command with --resume "
+        "reuses them",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _check_arguments(
@@ -183,14 +224,27 @@ def _train_models(
     models: list[TrainedModel] = []
     for name in plan.names:
         for s in plan.train_seeds:
+            model_folder = folder / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
+            key = training_key(name, s, plan.scale, device, dataset.fingerprint)
+            seconds = finished_training(model_folder, key)
+            if seconds is not None:
+                print(f"reusing {name} (seed {s}) from {model_folder}", flush=True)
+                _, detector = methods.load_detector(model_folder)
+                models.append(TrainedModel(name, s, detector, model_folder, seconds))
+                continue
             if progress:
                 print(f"training {name} (seed {s}, scale {plan.scale}) on {len(train)} windows", flush=True)
-            model_folder = folder / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
-            models.append(
-                train_method(
-                    dataset, name, s, plan.scale, model_folder, train, val, device=device, progress=progress
-                )
+            if model_folder.exists():  # unfinished, or trained with another key
+                shutil.rmtree(model_folder)
+            model = train_method(
+                dataset, name, s, plan.scale, model_folder, train, val, device=device, progress=progress
             )
+            record_training(model_folder, key, model.train_seconds)
+            models.append(model)
+    planned = {m.path.name for m in models}
+    for other in folder.iterdir():  # models of an interrupted run with other methods or seeds
+        if other.name not in planned:
+            shutil.rmtree(other)
     return models
 
 

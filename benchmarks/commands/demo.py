@@ -14,7 +14,11 @@ from benchmarks.errors import OutputExistsError
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_arguments(p)
-    p.add_argument("--replace", action="store_true", help="replace an existing run folder at --out")
+    p.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace an existing run folder at --out (and, without --resume, what an interrupted demo left)",
+    )
 
 
 def _pick_episodes(data: Path) -> list[str]:
@@ -40,6 +44,10 @@ def _run(args: argparse.Namespace) -> int:
             )
         shutil.rmtree(old, ignore_errors=True)
         out.rename(old)
+    if args.replace and not args.resume:
+        from benchmarks.resume import partial_folder
+
+        shutil.rmtree(partial_folder(out), ignore_errors=True)
     try:
         run_from_args(args)
     except BaseException:

@@ -22,6 +22,12 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     add_dataset_arguments(p, None)
     p.add_argument("--out", type=Path, required=True, help="run folder to create (must not exist)")
     p.add_argument(
+        "--resume",
+        action="store_true",
+        help="reuse the models an interrupted run with the same --out finished (kept in .OUT.partial beside "
+        "it), where method, seed, scale, device, dataset and code are the same; train the rest",
+    )
+    p.add_argument(
         "--methods",
         nargs="+",
         default=None,
@@ -77,6 +83,7 @@ def run_from_args(args: argparse.Namespace) -> Path:
             cache=args.cache,
             device=args.device,
             executor=ex,
+            resume=args.resume,
         )
 
 
@@ -94,6 +101,7 @@ COMMAND = Command(
     run=_run,
     example=(
         "msvdd-bench run --preset quick --seed 0 --out runs/quick\n"
-        "msvdd-bench run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper"
+        "msvdd-bench run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper\n"
+        "msvdd-bench run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper --resume"
     ),
 )

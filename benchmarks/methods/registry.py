@@ -134,7 +134,8 @@ def _set_progress(detector: Detector, progress: bool) -> None:
         detector.config = dataclasses.replace(config, progress=progress)  # type: ignore[attr-defined]
 
 
-def _versions() -> dict[str, str]:
+def versions() -> dict[str, str]:
+    """Versions of Python and of the packages a saved model depends on."""
     found = {"python": platform.python_version()}
     for dist in ("msvdd-bench", "numpy", "scipy", "torch", "scikit-learn"):
         with contextlib.suppress(metadata.PackageNotFoundError):
@@ -163,7 +164,7 @@ def save_detector(detector: Detector, name: str, directory: str | os.PathLike[st
         "format_version": METHOD_FORMAT_VERSION,
         "model_file": MODEL_FILE,
         "threshold": float(detector.threshold_),
-        "versions": _versions(),
+        "versions": versions(),
     }
     write_text_atomic(target / METHOD_FILE, json.dumps(info, indent=2, sort_keys=True) + "\n")
     return target

@@ -4,7 +4,8 @@ A task generates its point's dataset (from the point's derived preset and the da
 scores the methods with `benchmarks.runner.run_benchmark`, and reads the AUCs and their episode-cluster
 bootstrap intervals back from the run's `results.json`. Its folder, `DIR/points/pNN-seedS/`, is a complete
 run folder (dataset, models, results, scores), renamed into place when done: a retried task, or a sweep
-resumed with `--resume`, finds a finished folder and reuses it instead of running it again.
+resumed with `--resume`, finds a finished folder and reuses it instead of running it again, and an unfinished
+one's dataset and finished models (`benchmarks.resume`).
 """
 
 from __future__ import annotations
@@ -133,6 +134,7 @@ def run_point(task: PointTask) -> PointResult:
                 command=task.command,
                 progress=False,
                 device=task.device,
+                resume=True,  # a retried task (its worker died) reuses the models the first attempt finished
             )
         except OSError:  # another attempt of this task finished first: its folder is as good
             if not results.is_file():

@@ -116,6 +116,8 @@ def _generated_dataset(
     generating code (`benchmarks.cache.cache_key`, kept beside it), or a new one."""
     data_path, key_file = tmp / "dataset", tmp / DATASET_KEY_FILE
     key = cache_key(plan.preset, plan.seed)
+    for killed in tmp.glob(".dataset.partial-*"):  # a generation killed before it could clean up
+        shutil.rmtree(killed, ignore_errors=True)
     if data_path.exists():
         if key_file.is_file() and key_file.read_text().strip() == key:
             return data_path
@@ -129,15 +131,12 @@ def _generated_dataset(
 def _keep_finished(tmp: Path) -> None:
     """After a failure: keep `tmp` if it holds finished models or a generated dataset, else remove it."""
     finished = list(tmp.glob(f"models/*/{TRAINING_FILE}"))
-    if not finished and not (tmp / "dataset").is_dir():
+    dataset = (tmp / "dataset").is_dir()
+    if not finished and not dataset:
         shutil.rmtree(tmp, ignore_errors=True)
         return
-    print(
-        f"run stopped: {len(finished)} finished model(s) kept in {tmp}; the same command with --resume "
-        "reuses them",
-        file=sys.stderr,
-        flush=True,
-    )
+    kept = f"{len(finished)} finished model(s)" + (" and the generated dataset" if dataset else "")
+    print(f"run stopped: {kept} kept in {tmp}; the same command with --resume reuses them", file=sys.stderr)
 
 
 def _check_arguments(

@@ -50,7 +50,12 @@ def _method_files(method: str) -> tuple[Path, ...]:
 
 
 def training_key(method: str, seed: int, scale: str, device: str, dataset_fingerprint: str) -> str:
-    """The key a model must carry to be reused for `method` with these settings (module docstring)."""
+    """The key a model must carry to be reused for `method` with these settings (module docstring); device
+    "auto" counts as the device it picks on this machine."""
+    if device == "auto":
+        import torch
+
+        device = "cuda" if torch.cuda.is_available() else "cpu"
     recipe = {
         "method": method,
         "seed": seed,

@@ -98,6 +98,8 @@ def test_resume_retrains_what_another_code_or_an_unfinished_save_left(
 def test_the_key_names_method_seed_scale_device_dataset_and_code(monkeypatch: pytest.MonkeyPatch) -> None:
     key = resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc")
     assert key == resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc")
+    monkeypatch.setattr("torch.cuda.is_available", lambda: False)
+    assert key == resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc")  # auto = cpu here
     others = [
         resume_mod.training_key("iforest-late", 0, "smoke", "cpu", "abc"),
         resume_mod.training_key("iforest-early", 1, "smoke", "cpu", "abc"),
@@ -105,6 +107,8 @@ def test_the_key_names_method_seed_scale_device_dataset_and_code(monkeypatch: py
         resume_mod.training_key("iforest-early", 0, "smoke", "cuda", "abc"),
         resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abd"),
     ]
+    monkeypatch.setattr("torch.cuda.is_available", lambda: True)
+    assert resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc") == others[3]  # auto = cuda
     monkeypatch.setattr(resume_mod, "versions", lambda: {"torch": "0"})
     others.append(resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc"))
     assert len({key, *others}) == len(others) + 1
@@ -122,7 +126,12 @@ def test_a_resumed_run_regenerates_a_dataset_only_when_its_recipe_changed(
     manifest = (dataset / "manifest.json").read_bytes()
     generated: list[Path] = []
     real_generate = runner.generate
-    monkeypatch.setattr(runner, "generate", lambda *a, **k: generated.append(a[2]) or real_generate(*a, **k))
+
+    def recording_generate(*args: Any, **kwargs: Any) -> Path:
+        generated.append(args[2])
+        return real_generate(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "generate", recording_generate)
     assert main([*argv, "--resume"]) == 0
     assert generated == []  # the interrupted run's dataset, reused
     assert (out / "dataset" / "manifest.json").read_bytes() == manifest

@@ -156,3 +156,22 @@ def test_a_run_that_fails_before_any_model_leaves_nothing(tiny_dataset: Path, tm
         _count_training(m, stop_at="iforest-early")
         assert _run(tiny_dataset, out) == 130
     assert not out.exists() and not partial_folder(out).exists()
+
+
+def test_demo_replace_clears_what_a_stopped_demo_left_unless_resumed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import benchmarks.commands.demo as demo
+
+    out = tmp_path / "demo"
+    seen: list[bool] = []
+
+    def stop(args: Any) -> Path:
+        seen.append(partial_folder(out).exists())
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(demo, "run_from_args", stop)
+    for flags, kept in ((["--replace", "--resume"], True), (["--replace"], False)):
+        (partial_folder(out) / "models").mkdir(parents=True, exist_ok=True)
+        assert main(["demo", "--out", str(out), "--no-progress", *flags]) == 130
+        assert seen.pop() is kept

@@ -49,9 +49,15 @@ def _method_files(method: str) -> tuple[Path, ...]:
     return (Path(origin),) if origin and Path(origin).is_file() else ()
 
 
-def training_key(method: str, seed: int, scale: str, device: str, dataset_fingerprint: str) -> str:
-    """The key a model must carry to be reused for `method` with these settings (module docstring); device
-    "auto" counts as the device it picks on this machine."""
+def code_digest(method: str) -> str:
+    """sha256 of the source that trains `method` (`TRAINING_PACKAGES`, `TRAINING_MODULES`, its own module);
+    a run takes it once, when it starts, so that every model's key names the code the run loaded."""
+    return source_digest(TRAINING_PACKAGES, TRAINING_MODULES, _method_files(method))
+
+
+def training_key(method: str, seed: int, scale: str, device: str, dataset_fingerprint: str, code: str) -> str:
+    """The key a model must carry to be reused for `method` with these settings and `code_digest` `code`
+    (module docstring); device "auto" counts as the device it picks on this machine."""
     if device == "auto":
         import torch
 
@@ -63,7 +69,7 @@ def training_key(method: str, seed: int, scale: str, device: str, dataset_finger
         "device": device,
         "dataset": dataset_fingerprint,
         "versions": versions(),
-        "code": source_digest(TRAINING_PACKAGES, TRAINING_MODULES, _method_files(method)),
+        "code": code,
     }
     return hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()
 

@@ -22,7 +22,14 @@ from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
 from benchmarks.report import RunInfo, write_report
-from benchmarks.resume import TRAINING_FILE, finished_training, partial_folder, record_training, training_key
+from benchmarks.resume import (
+    TRAINING_FILE,
+    code_digest,
+    finished_training,
+    partial_folder,
+    record_training,
+    training_key,
+)
 from msvdd.contract import Windows
 
 DATASET_KEY_FILE = "dataset.key"
@@ -42,6 +49,8 @@ class _Plan:
     """The methods, groups expanded."""
     scale: str
     train_seeds: list[int]
+    code: dict[str, str]
+    """Each method's `benchmarks.resume.code_digest`, taken when the run starts (its models' resume keys)."""
 
 
 def run_benchmark(
@@ -173,7 +182,7 @@ def _plan(
         methods.spec(name)
     chosen_scale = check_scale(scale or preset.method_scale)
     train_seeds = seeds if seeds else list(preset.seeds)
-    return _Plan(preset, seed, names, chosen_scale, train_seeds)
+    return _Plan(preset, seed, names, chosen_scale, train_seeds, {n: code_digest(n) for n in names})
 
 
 def _train_and_report(
@@ -224,7 +233,7 @@ def _train_models(
     for name in plan.names:
         for s in plan.train_seeds:
             model_folder = folder / f"{name.replace(':', '.')}-seed{s}"  # module:Class -> module.Class
-            key = training_key(name, s, plan.scale, device, dataset.fingerprint)
+            key = training_key(name, s, plan.scale, device, dataset.fingerprint, plan.code[name])
             seconds = finished_training(model_folder, key)
             if seconds is not None:
                 print(f"reusing {name} (seed {s}) from {model_folder}", flush=True)

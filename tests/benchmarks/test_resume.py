@@ -96,21 +96,24 @@ def test_resume_retrains_what_another_code_or_an_unfinished_save_left(
 
 
 def test_the_key_names_method_seed_scale_device_dataset_and_code(monkeypatch: pytest.MonkeyPatch) -> None:
-    key = resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc")
-    assert key == resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc")
+    code = resume_mod.code_digest("iforest-early")
+    key = resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc", code)
+    assert key == resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc", code)
     monkeypatch.setattr("torch.cuda.is_available", lambda: False)
-    assert key == resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc")  # auto = cpu here
+    assert key == resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc", code)  # auto = cpu here
     others = [
-        resume_mod.training_key("iforest-late", 0, "smoke", "cpu", "abc"),
-        resume_mod.training_key("iforest-early", 1, "smoke", "cpu", "abc"),
-        resume_mod.training_key("iforest-early", 0, "full", "cpu", "abc"),
-        resume_mod.training_key("iforest-early", 0, "smoke", "cuda", "abc"),
-        resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abd"),
+        resume_mod.training_key("iforest-late", 0, "smoke", "cpu", "abc", code),
+        resume_mod.training_key("iforest-early", 1, "smoke", "cpu", "abc", code),
+        resume_mod.training_key("iforest-early", 0, "full", "cpu", "abc", code),
+        resume_mod.training_key("iforest-early", 0, "smoke", "cuda", "abc", code),
+        resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abd", code),
+        resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc", code + "edited"),
     ]
     monkeypatch.setattr("torch.cuda.is_available", lambda: True)
-    assert resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc") == others[3]  # auto = cuda
+    auto = resume_mod.training_key("iforest-early", 0, "smoke", "auto", "abc", code)
+    assert auto == others[3]  # auto = cuda here
     monkeypatch.setattr(resume_mod, "versions", lambda: {"torch": "0"})
-    others.append(resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc"))
+    others.append(resume_mod.training_key("iforest-early", 0, "smoke", "cpu", "abc", code))
     assert len({key, *others}) == len(others) + 1
 
 

@@ -32,12 +32,13 @@ demo: $(STAMP)
 
 # The paper preset as two datasets from different seeds, both audited: dev (where every choice a method
 # makes is made) and eval (only reported); Table I is trained and scored on eval. Hours on 2 cores: stopped,
-# `make bench` again resumes (--resume reuses every model the stopped run finished).
+# `make bench` again resumes (--resume reuses every model the stopped run finished; --reuse prints an audit
+# already made of the same dataset with the same code instead of running it again).
 bench: $(STAMP)
 	test -d runs/paper-dev || $(BENCH) generate --preset paper --seed 1 --out runs/paper-dev
 	test -d runs/paper-eval || $(BENCH) generate --preset paper --seed 2 --out runs/paper-eval
-	$(BENCH) audit runs/paper-dev --out runs/paper-dev-audit
-	$(BENCH) audit runs/paper-eval --out runs/paper-eval-audit
+	$(BENCH) audit runs/paper-dev --out runs/paper-dev-audit --reuse
+	$(BENCH) audit runs/paper-eval --out runs/paper-eval-audit --reuse
 	$(BENCH) run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper --resume
 
 # The module, fusion and latent ablations on the eval dataset that `make bench` generated.

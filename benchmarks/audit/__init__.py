@@ -4,7 +4,20 @@
 `benchmarks.audit.report` for their limits.
 """
 
-from benchmarks.audit.core import run_audit
-from benchmarks.audit.report import FAIL, PASS, REPORT, SKIP, AuditResult, ProbeRow, markdown, write
+from benchmarks.audit.core import audit_key, run_audit, stored_audit
+from benchmarks.audit.report import FAIL, PASS, REPORT, SKIP, AuditResult, ProbeRow, markdown, read, write
 
-__all__ = ["FAIL", "PASS", "REPORT", "SKIP", "AuditResult", "ProbeRow", "markdown", "run_audit", "write"]
+__all__ = [
+    "FAIL",
+    "PASS",
+    "REPORT",
+    "SKIP",
+    "AuditResult",
+    "ProbeRow",
+    "audit_key",
+    "markdown",
+    "read",
+    "run_audit",
+    "stored_audit",
+    "write",
+]

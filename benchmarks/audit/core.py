@@ -29,10 +29,16 @@ A dataset imported from recordings (`msvdd-bench import`) has no simulator behin
 deleted-sound, fault-level, ambience and context probes are skipped (rows with status SKIP and the reason),
 and the others run on what was recorded. Without IMU (an audio-only import) the IMU acceleration peak is
 skipped and the reference detector is the audio-only one (`gaussian-audio`).
+
+An audit records its key (`audit_key`: the dataset's fingerprint, the package versions and the source of
+the project's code); `msvdd-bench audit --reuse` prints a stored audit whose key matches instead of
+computing it again (`make bench`, which audits both datasets on every call).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 from collections.abc import Callable
@@ -56,9 +62,18 @@ from benchmarks.audit.report import (
     REPETITION_LIMIT,
     AuditResult,
     ProbeRow,
+    read,
 )
+from benchmarks.cache import source_digest
 from benchmarks.dataset import Dataset, DatasetError, WindowRow, episode_audio_config, open_dataset
-from benchmarks.episode import IMPORTED, audio_file, read_episode, read_trace, read_trace_signals
+from benchmarks.episode import (
+    IMPORTED,
+    audio_file,
+    read_episode,
+    read_trace,
+    read_trace_signals,
+    software_versions,
+)
 from benchmarks.methods.gaussian import GaussianReference
 from benchmarks.metrics import roc_auc
 from benchmarks.uncertainty import auc_interval, auc_per_normal_episode
@@ -349,7 +364,32 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     if simulated:
         rows += _simulator_probes(data, got, refs.s_audio, refs.audio_only, progress)
     preset = data.preset_name
-    return AuditResult(str(data.path), preset, data.seed, tuple(rows), time.perf_counter() - started)
+    seconds = time.perf_counter() - started
+    return AuditResult(str(data.path), preset, data.seed, tuple(rows), seconds, audit_key(data))
+
+
+AUDIT_CODE: tuple[str, ...] = ("benchmarks", "msvdd", "sim", "synth_audio", "assets")
+"""Packages whose source is part of an audit's key: all of the project's code, so any edit reruns it."""
+
+
+def audit_key(data: Dataset) -> str:
+    """sha256 over what decides an audit's figures: the dataset's fingerprint, the package versions and the
+    source of the project's code (`AUDIT_CODE`)."""
+    recipe = {
+        "dataset": data.fingerprint,
+        "software": software_versions(),
+        "code": source_digest(AUDIT_CODE, ()),
+    }
+    return hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()
+
+
+def stored_audit(dataset: Path, out: Path) -> AuditResult | None:
+    """The audit of `dataset` stored in `out` if its key is this dataset's and this software's (the dataset
+    is verified first, as `run_audit` does); None if there is none, it is unreadable or its key differs."""
+    stored = read(out)
+    if stored is None or stored.key != audit_key(open_dataset(Path(dataset))):
+        return None
+    return stored
 
 
 def _scalar_rows(

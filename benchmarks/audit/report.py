@@ -90,6 +90,8 @@ class AuditResult:
     """The probes."""
     seconds: float
     """Wall time of the audit, s."""
+    key: str = ""
+    """`benchmarks.audit.core.audit_key` of what was audited: `--reuse` reruns the audit unless it matches."""
 
     @property
     def failed(self) -> list[ProbeRow]:
@@ -103,9 +105,22 @@ class AuditResult:
             "preset": self.preset,
             "seed": self.seed,
             "seconds": round(self.seconds, 1),
+            "key": self.key,
             "passed": not self.failed,
             "probes": [r.to_dict() for r in self.rows],
         }
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> AuditResult:
+        """The result `to_dict` wrote (statuses are recomputed from figures and limits)."""
+        fields = ("group", "probe", "target", "figure", "limit", "unit", "detail", "skipped")
+        rows = []
+        for probe in doc["probes"]:
+            row = {name: probe[name] for name in fields}
+            row["figure"] = math.nan if row["figure"] is None else float(row["figure"])
+            rows.append(ProbeRow(**row))
+        seed, seconds = int(doc["seed"]), float(doc["seconds"])
+        return cls(doc["dataset"], doc["preset"], seed, tuple(rows), seconds, str(doc["key"]))
 
 
 def _fmt(x: float | None, unit: str) -> str:
@@ -148,6 +163,14 @@ def markdown(result: AuditResult) -> str:
             f"{r.status} | {r.skipped or r.detail} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def read(out: Path) -> AuditResult | None:
+    """The audit `write` left in `out`, or None if there is none or it cannot be read (then it is rerun)."""
+    try:
+        return AuditResult.from_dict(json.loads((out / "audit.json").read_text()))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def write(result: AuditResult, out: Path) -> tuple[Path, Path]:

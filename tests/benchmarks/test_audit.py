@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.audit import FAIL, PASS, REPORT, run_audit, write
+from benchmarks.audit import FAIL, PASS, REPORT, read, run_audit, stored_audit, write
 from benchmarks.audit.core import context_starts
 from benchmarks.audit.signals import (
     acceleration_peak,
@@ -132,6 +132,33 @@ def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_
     assert doc["passed"] == (not result.failed)
     assert len(doc["probes"]) == len(result.rows)
     assert "| group | probe |" in md_path.read_text()
+
+
+def test_reuse_prints_the_stored_audit_only_while_dataset_and_code_match(
+    tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "audit"
+    assert main(["audit", str(tiny_dataset), "--out", str(out), "--reuse", "--no-progress"]) in (0, 1)
+    assert "wrote" in capsys.readouterr().out  # nothing stored yet: it ran
+    stored = read(out)
+    assert stored is not None and len(stored.key) == 64
+    written = (out / "audit.json").read_bytes()
+    status = main(["audit", str(tiny_dataset), "--out", str(out), "--reuse", "--no-progress"])
+    printed = capsys.readouterr().out
+    assert "reused" in printed and f"{len(stored.rows)} probes" in printed
+    assert status == (1 if stored.failed else 0)
+    assert (out / "audit.json").read_bytes() == written  # reused, not rewritten
+    again = stored_audit(tiny_dataset, out)
+    assert again is not None
+    assert [(r.probe, r.target, r.status, r.detail) for r in again.rows] == [
+        (r.probe, r.target, r.status, r.detail) for r in stored.rows
+    ]
+    # Other code (or package versions, or data) gives another key: the stored audit is not reused.
+    monkeypatch.setattr("benchmarks.audit.core.source_digest", lambda *_: "edited")
+    assert stored_audit(tiny_dataset, out) is None
+    monkeypatch.undo()
+    (out / "audit.json").write_text("{ truncated")
+    assert stored_audit(tiny_dataset, out) is None
 
 
 def test_audit_command_refuses_a_missing_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

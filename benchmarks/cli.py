@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import pkgutil
+import signal
 import sys
 import textwrap
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from types import FrameType
 
 from benchmarks import commands
 from benchmarks.command import Command
@@ -79,16 +83,43 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a `kill`, a CI timeout, a machine taken back), raised where the command was so that it stops
+    as after Ctrl-C: temporary folders removed, a stopped run's finished models kept."""
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def stop_on_sigterm() -> Iterator[None]:
+    """While inside, SIGTERM raises `Terminated` in the main thread (elsewhere: nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `msvdd-bench`.
 
     Bad input (`benchmarks.errors.is_user_error`) exits 2 with its one-line message; any other exception
-    is a bug and keeps its traceback.
+    is a bug and keeps its traceback. Ctrl-C exits 130 and SIGTERM 143, each after the command cleaned up
+    (a shell starts background jobs with Ctrl-C ignored; `kill PID` stops them the same way).
     """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args))
+        with stop_on_sigterm():
+            return int(args._run(args))
+    except Terminated:
+        print(f"msvdd-bench {args._name}: terminated (SIGTERM)", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print(f"msvdd-bench {args._name}: interrupted", file=sys.stderr)
         return 130

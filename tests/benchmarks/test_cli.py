@@ -148,3 +148,29 @@ def test_a_library_bug_keeps_its_traceback(monkeypatch: pytest.MonkeyPatch, tmp_
     monkeypatch.setattr(ds, "generate", broken)  # the command imports it when it runs
     with pytest.raises(ValueError, match="could not be broadcast"):
         main(["generate", "--preset", "tiny", "--out", str(tmp_path / "d")])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_sigterm_stops_a_command_like_ctrl_c_and_leaves_nothing(tmp_path: Path, workers: int) -> None:
+    """`kill PID` (a background job ignores Ctrl-C): exit 143, and the half-generated dataset is removed."""
+    import signal
+    import time
+
+    out = tmp_path / "data"
+    command = ["generate", "--preset", "tiny", "--seed", "3", "--out", str(out), "--workers", str(workers)]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.cli", *command, "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not list(tmp_path.glob(".data.partial-*/*")):  # an episode under way
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert "msvdd-bench generate: terminated (SIGTERM)" in err
+    assert list(tmp_path.iterdir()) == []

@@ -89,7 +89,7 @@ class ExportManifest:
     opset: int
     """ONNX opset version of the graph."""
     parity_max_rel: float
-    """Largest |onnx / torch - 1| over the check windows at export (torch = MSVDD.score)."""
+    """max |onnx - torch| / max |torch| over the check windows at export (torch = MSVDD.score)."""
     parity_windows: int
     """Number of check windows."""
     parity_source: str

@@ -269,3 +269,11 @@ def test_export_refusals(
         export_onnx(MSVDD(MSVDDConfig.smoke()), tmp_path / "unfitted")
     with pytest.raises(ValueError, match="example_windows"):
         ExportOptions(example_windows=1)
+
+
+def test_parity_is_measured_against_the_scale_of_the_scores() -> None:
+    # A window scoring 1e-9 that comes out 2e-9 is no difference at the scale of scores near 1.
+    assert max_relative_difference(np.array([1.0, 2e-9]), np.array([1.0, 1e-9])) == pytest.approx(1e-9)
+    assert max_relative_difference(np.array([2.0, 4.0]), np.array([1.0, 2.0])) == pytest.approx(1.0)
+    assert max_relative_difference(np.array([-3.0, 1.0]), np.array([-2.0, 1.0])) == pytest.approx(0.5)
+    assert max_relative_difference(np.zeros(0), np.zeros(0)) == 0.0

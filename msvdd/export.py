@@ -15,8 +15,8 @@ windows too). The decision `score > threshold_` is `OnnxScorer.predict`.
 
 At export the graph is run on ONNX Runtime over check windows and compared with `MSVDD.score`; a difference
 above `ExportOptions.rtol` relative to the largest score (`max_relative_difference`) is an `ExportError` and
-nothing is written. The folder is written
-whole or not at all (built in a hidden temporary folder beside it, then renamed into place).
+nothing is written. The folder is written whole or not at all (built in a hidden temporary folder beside it,
+then renamed into place).
 """
 
 from __future__ import annotations

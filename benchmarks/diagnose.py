@@ -143,7 +143,7 @@ class GroupTerms:
     """ROC AUC of the full score (None for the normal group)."""
 
 
-WEIGHT_GRID: tuple[float, ...] = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+WEIGHT_GRID: tuple[float, ...] = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0)
 """Weights w of the reconstruction term tried by `weight_sweep` (0.01 is the paper's)."""
 
 

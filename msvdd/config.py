@@ -9,8 +9,9 @@ from typing import Any, Self
 from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
+from msvdd.residual import MIXTURE_COMPONENTS
 
-REC_SCORES = ("mean", "peak", "mahalanobis")
+REC_SCORES = ("mean", "peak", "mahalanobis", "mixture")
 """Allowed `rec_score` values."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
@@ -50,7 +51,10 @@ class MSVDDConfig:
     """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
     modalities), "peak" (per modality its largest per-time-step error over its training mean, summed) or
     "mahalanobis" (per modality the largest Mahalanobis distance of a residual frame under a Gaussian of the
-    training residuals, `msvdd.residual`, over its training mean, summed)."""
+    training residuals, `msvdd.residual`, over its training mean, summed) or "mixture" (the same with a
+    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`)."""
+    rec_components: int = MIXTURE_COMPONENTS
+    """Components of each modality's residual frame mixture (`rec_score="mixture"` only)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4
@@ -95,6 +99,7 @@ class MSVDDConfig:
         _check(0 < self.nu <= 1, "nu", self.nu, "0 < nu <= 1")
         _check(self.w >= 0, "w", self.w, ">= 0")
         _check(self.rec_score in REC_SCORES, "rec_score", self.rec_score, " | ".join(REC_SCORES))
+        _check(self.rec_components >= 1, "rec_components", self.rec_components, ">= 1")
         _check(self.batch_size >= 2, "batch_size", self.batch_size, ">= 2")
         _check(self.lr > 0, "lr", self.lr, "> 0")
         _check(self.epochs >= 1, "epochs", self.epochs, ">= 1")

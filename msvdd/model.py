@@ -2,12 +2,13 @@
 
 fit: z-score statistics from the training windows; train the network with
 alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
-and Sigma by MCD over the embeddings of the whole training split (with `rec_score="mahalanobis"` also the
-Gaussians of the training windows' residual frames, `msvdd.residual`), the training means of D and Rec, and
-the score delta = D + w (mean_D / mean_Rec) Rec, Rec the reconstruction term `rec_score` names; the threshold
-follows the rule of `msvdd.contract.Detector` (the `quantile` of the scores of held-out nominal windows). No
-test label is ever seen. With `use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary
-Deep SVDD around a fixed centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
+and Sigma by MCD over the embeddings of the whole training split (with `rec_score="mahalanobis"` or
+`"mixture"` also the Gaussians or Gaussian mixtures of the training windows' residual frames,
+`msvdd.residual`), the training means of D and Rec, and the score delta = D + w (mean_D / mean_Rec) Rec, Rec
+the reconstruction term `rec_score` names; the threshold follows the rule of `msvdd.contract.Detector` (the
+`quantile` of the scores of held-out nominal windows). No test label is ever seen. With
+`use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD around a fixed
+centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
 """
 
 from __future__ import annotations
@@ -46,15 +47,23 @@ from msvdd.losses import (
 )
 from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
 from msvdd.network import AUDIO_STRIDES, IMU_FRAME, FusionNet, NetOutput
-from msvdd.residual import FrameGaussian, fit_frame_gaussian, residual_frames
+from msvdd.residual import (
+    FrameGaussian,
+    FrameMixture,
+    fit_frame_gaussian,
+    fit_frame_mixture,
+    residual_frames,
+)
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
 FORMAT_VERSION = 3
 """Version of the file written by `MSVDD.save` (2: front-end choice and per-channel statistics, training
-history; 3: the residual frame Gaussians of `rec_score="mahalanobis"`); `load` also reads versions 1 (the
-paper's waveform and z-velocity) and 2, refuses any other."""
+history; 3: the residual frame densities of `rec_score="mahalanobis"` and `"mixture"`); `load` also reads
+versions 1 (the paper's waveform and z-velocity) and 2, refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
+FRAME_DENSITY_SCORES = ("mahalanobis", "mixture")
+"""`rec_score`s that fit a density of the training windows' residual frames after training."""
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 """Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
 
@@ -100,7 +109,7 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
-        self.rec_gauss_: list[FrameGaussian] | None = None
+        self.rec_gauss_: list[FrameGaussian | FrameMixture] | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -237,8 +246,8 @@ class MSVDD(Detector):
         else:
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
-        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction:
-            self.rec_gauss_ = self._fit_residual_gaussians(train_t)
+        if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
+            self.rec_gauss_ = self._fit_residual_densities(train_t)
         d, parts = self._distance_and_parts(train_t)
         if cfg.rec_score != "mean" and parts.shape[1]:
             self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
@@ -284,14 +293,17 @@ class MSVDD(Detector):
         if self.config.rec_score == "peak":
             return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
         if self.rec_gauss_ is None or len(self.rec_gauss_) != len(pairs):
-            raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
+            raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
         return [
             g.peak_distance(residual_frames(x, x_hat, axis, frame))
             for g, (x, x_hat, axis, _, frame) in zip(self.rec_gauss_, pairs, strict=True)
         ]
 
-    def _fit_residual_gaussians(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> list[FrameGaussian]:
-        """One `FrameGaussian` per reconstructed modality over the residual frames of `tensors`."""
+    def _fit_residual_densities(
+        self, tensors: tuple[torch.Tensor, torch.Tensor]
+    ) -> list[FrameGaussian | FrameMixture]:
+        """One `FrameGaussian` ("mahalanobis") or `FrameMixture` ("mixture") per reconstructed modality over
+        the residual frames of `tensors`."""
         frames: list[list[torch.Tensor]] = []
         with torch.inference_mode():
             for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
@@ -301,7 +313,10 @@ class MSVDD(Detector):
                 for store, (x, x_hat, axis, _, frame) in zip(frames, pairs, strict=True):
                     f = residual_frames(x, x_hat, axis, frame)
                     store.append(f.reshape(-1, f.shape[2]))
-        return [fit_frame_gaussian(torch.cat(store)) for store in frames]
+        cfg = self.config
+        if cfg.rec_score == "mixture":
+            return [fit_frame_mixture(torch.cat(f), cfg.rec_components, cfg.seed) for f in frames]
+        return [fit_frame_gaussian(torch.cat(f)) for f in frames]
 
     def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
@@ -431,8 +446,11 @@ class MSVDD(Detector):
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
-        if model.config.rec_score == "mahalanobis" and model.config.use_reconstruction:
-            model.rec_gauss_ = [FrameGaussian.from_state(g, model.device) for g in payload["rec_gauss"]]
+        if model.config.rec_score in FRAME_DENSITY_SCORES and model.config.use_reconstruction:
+            density: type[FrameGaussian] | type[FrameMixture] = (
+                FrameMixture if model.config.rec_score == "mixture" else FrameGaussian
+            )
+            model.rec_gauss_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)

@@ -14,8 +14,8 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
 4. D = ||L^-1 (z - mu)||, L the Cholesky factor of the fitted Sigma (L^-1 stored: the inverse covariance as
    Sigma^-1 = L^-T L^-1), in float64 like `msvdd.mcd.mahalanobis`; the Euclidean ablation stores mu = c and
    L^-1 = I.
-5. The reconstruction term (mean or peak Huber error per modality, or the largest Mahalanobis distance of
-   a residual frame under the model's `msvdd.residual.FrameGaussian`, over `rec_scale_`, summed) and
+5. The reconstruction term (mean or peak Huber error per modality, or the largest distance of a residual
+   frame under the model's `msvdd.residual.FrameGaussian` or `FrameMixture`, over `rec_scale_`, summed) and
    delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
@@ -53,9 +53,9 @@ from torch import nn
 from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
-from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, MSVDD, NotFittedError
+from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, FRAME_DENSITY_SCORES, MSVDD, NotFittedError
 from msvdd.network import IMU_FRAME, AudioDecoder, AudioEncoder
-from msvdd.residual import residual_frames
+from msvdd.residual import FrameMixture, mixture_peak_distance, residual_frames
 
 
 def _f32(x: np.ndarray) -> torch.Tensor:
@@ -64,6 +64,11 @@ def _f32(x: np.ndarray) -> torch.Tensor:
 
 def _f64(x: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(x, dtype=np.float64))
+
+
+def _constant(x: torch.Tensor) -> nn.Parameter:
+    """A fixed float64 CPU copy of a fitted tensor, kept with the graph's parameters (no gradient)."""
+    return nn.Parameter(x.detach().cpu().double(), requires_grad=False)
 
 
 class ChannelSmoother(nn.Module):
@@ -386,14 +391,21 @@ class ScoreGraph(nn.Module):
         # The residual frame Gaussians, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
         self.frame_mean = nn.ParameterDict()
         self.frame_whiten = nn.ParameterDict()
-        if cfg.rec_score == "mahalanobis" and cfg.use_reconstruction:
+        self.frame_log_weights = nn.ParameterDict()
+        self.frame_precision_cholesky = nn.ParameterDict()
+        if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
             if model.rec_gauss_ is None:
-                raise NotFittedError("MSVDD is not fitted: its residual frame Gaussians are missing")
+                raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
             decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
             names = [name for name, decoder in decoders if decoder is not None]
             for name, g in zip(names, model.rec_gauss_, strict=True):
-                self.frame_mean[name] = nn.Parameter(g.mean.detach().cpu().double(), requires_grad=False)
-                self.frame_whiten[name] = nn.Parameter(g.whiten.detach().cpu().double(), requires_grad=False)
+                if isinstance(g, FrameMixture):
+                    self.frame_log_weights[name] = _constant(g.log_weights)
+                    self.frame_mean[name] = _constant(g.means)
+                    self.frame_precision_cholesky[name] = _constant(g.precision_cholesky)
+                else:
+                    self.frame_mean[name] = _constant(g.mean)
+                    self.frame_whiten[name] = _constant(g.whiten)
         mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 
@@ -415,13 +427,21 @@ class ScoreGraph(nn.Module):
         return self.imu_smoother(channels.unsqueeze(2)).flatten(2).transpose(1, 2)
 
     def frame_distance(self, name: str, frames: torch.Tensor) -> torch.Tensor:
-        """(N,) largest Mahalanobis distance of the residual frames (N, T, p) of modality `name`."""
+        """(N,) largest distance of the residual frames (N, T, p) of modality `name`: Mahalanobis under the
+        frame Gaussian, or the mixture's `msvdd.residual.mixture_peak_distance`."""
+        if self.rec_score == "mixture":
+            return mixture_peak_distance(
+                frames,
+                self.frame_log_weights[name],
+                self.frame_mean[name],
+                self.frame_precision_cholesky[name],
+            )
         y = (frames.to(torch.float64) - self.frame_mean[name]) @ self.frame_whiten[name]
         return torch.sqrt((y * y).sum(dim=2)).amax(dim=1)
 
     def audio_error(self, a: torch.Tensor, a_rec: torch.Tensor) -> torch.Tensor:
         """(N,) reconstruction error of the audio input, as `MSVDD.rec_parts` measures it."""
-        if self.rec_score == "mahalanobis":
+        if self.rec_score in FRAME_DENSITY_SCORES:
             if self.logmel_input:  # (N, 2, T, M): frames of both channels' bands
                 return self.frame_distance("audio", residual_frames(a, a_rec, 2, 1))
             # (N, 2, 1, L) -> (N, L, 2), the model's layout: frames of 180 samples of both channels
@@ -436,7 +456,7 @@ class ScoreGraph(nn.Module):
 
     def imu_error(self, i: torch.Tensor, i_rec: torch.Tensor) -> torch.Tensor:
         """(N,) reconstruction error of the IMU input, as `MSVDD.rec_parts` measures it."""
-        if self.rec_score == "mahalanobis":
+        if self.rec_score in FRAME_DENSITY_SCORES:
             return self.frame_distance("imu", residual_frames(i, i_rec, 1, IMU_FRAME))
         err = huber(i, i_rec)  # (N, 400) or (N, 400, 7)
         if self.rec_score == "mean":

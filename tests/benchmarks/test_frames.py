@@ -4,6 +4,7 @@ scikit-learn, scipy."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,12 +12,12 @@ from scipy.spatial.distance import mahalanobis
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 from sklearn.covariance import LedoitWolf
-from sklearn.mixture import GaussianMixture
 
 from benchmarks import methods
-from benchmarks.methods.frames import MIXTURE_COMPONENTS, MIXTURE_REG, FrameReference, MixtureFrameReference
+from benchmarks.methods.frames import MIXTURE_COMPONENTS, FrameReference, MixtureFrameReference
 from msvdd.contract import WindowError
 from msvdd.frontend import InputNormalizer
+from msvdd.residual import MIXTURE_REG
 from msvdd.synthetic import toy_windows
 
 
@@ -28,6 +29,11 @@ def _input_frames(norm: InputNormalizer, batch: object) -> list[np.ndarray]:
         audio.permute(0, 2, 1, 3).reshape(n, 67, 64).numpy().astype(np.float64),
         imu.reshape(n, 50, 56).numpy().astype(np.float64),
     ]
+
+
+def _covariance(precision_cholesky: np.ndarray) -> np.ndarray:
+    """A component's covariance C from scikit-learn's factor P (P P^T = C^-1)."""
+    return np.linalg.inv(precision_cholesky @ precision_cholesky.T)
 
 
 def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
@@ -54,32 +60,34 @@ def test_scores_are_the_largest_frame_distances_by_hand(tmp_path: Path) -> None:
     np.testing.assert_array_equal(FrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
 
 
-def test_mixture_scores_are_standardised_peak_negative_log_likelihoods(tmp_path: Path) -> None:
+def test_mixture_scores_are_peak_mixture_distances_in_units_of_training_means(tmp_path: Path) -> None:
     train, _ = toy_windows(40, 0, seed=3)
     test, labels = toy_windows(3, 3, seed=4)
     det = methods.make("mixture-frames", seed=5, scale="smoke").fit(train)
     assert isinstance(det, MixtureFrameReference)
-    assert [m.n_components for m in det.mixtures] == [MIXTURE_COMPONENTS, MIXTURE_COMPONENTS]
+    assert [m.means.shape[0] for m in det.mixtures] == [MIXTURE_COMPONENTS, MIXTURE_COMPONENTS]
     # By hand: each frame's mixture density from scipy's multivariate normal with the fitted weights, means
-    # and covariances (log-sum-exp over components); per modality the largest negative log-likelihood of a
-    # window, standardised with the training windows' mean and standard deviation; summed.
+    # and covariances (log-sum-exp over components); the floor is the largest component density at its own
+    # mean; per modality sqrt(2 (largest negative log-likelihood - floor)) of a window, over its training
+    # mean; summed.
     norm = InputNormalizer.fit(train, "logmel", "all")
     want = np.zeros(len(test))
     for m, tr, te in zip(det.mixtures, _input_frames(norm, train), _input_frames(norm, test), strict=True):
-
-        def peak(x: np.ndarray, m: GaussianMixture = m) -> np.ndarray:
-            flat = x.reshape(-1, x.shape[2])
-            logp = np.stack(
-                [
-                    np.log(w) + multivariate_normal(mu, c).logpdf(flat)
-                    for w, mu, c in zip(m.weights_, m.means_, m.covariances_, strict=True)
-                ]
+        parts = [
+            (lw, multivariate_normal(mu, _covariance(p)))
+            for lw, mu, p in zip(
+                m.log_weights.numpy(), m.means.numpy(), m.precision_cholesky.numpy(), strict=True
             )
-            return (-logsumexp(logp, axis=0)).reshape(x.shape[:2]).max(axis=1)
+        ]
+        floor = -max(g.logpdf(g.mean) for _, g in parts)
 
-        p_tr = peak(tr)
-        want += (peak(te) - p_tr.mean()) / p_tr.std()
-    np.testing.assert_allclose(det.score(test), want, rtol=1e-6, atol=1e-6)
+        def peak(x: np.ndarray, parts: list[Any] = parts, floor: float = floor) -> np.ndarray:
+            flat = x.reshape(-1, x.shape[2])
+            nll = -logsumexp(np.stack([lw + g.logpdf(flat) for lw, g in parts]), axis=0)
+            return np.sqrt(2.0 * (nll.reshape(x.shape[:2]).max(axis=1) - floor))
+
+        want += peak(te) / peak(tr).mean()
+    np.testing.assert_allclose(det.score(test), want, rtol=1e-6)
     assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
     det.save(tmp_path / "m.npz")
     np.testing.assert_array_equal(MixtureFrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
@@ -93,9 +101,9 @@ def test_one_component_is_the_maximum_likelihood_gaussian() -> None:
     norm = InputNormalizer.fit(train, "logmel", "all")
     for m, frames in zip(det.mixtures, _input_frames(norm, train), strict=True):
         flat = frames.reshape(-1, frames.shape[2])
-        np.testing.assert_allclose(m.means_[0], flat.mean(axis=0), atol=1e-9)
+        np.testing.assert_allclose(m.means[0].numpy(), flat.mean(axis=0), atol=1e-9)
         want = np.cov(flat, rowvar=False, bias=True) + MIXTURE_REG * np.eye(flat.shape[1])
-        np.testing.assert_allclose(m.covariances_[0], want, atol=1e-9)
+        np.testing.assert_allclose(_covariance(m.precision_cholesky[0].numpy()), want, atol=1e-8)
 
 
 def test_mixture_needs_as_many_frames_as_components() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -11,10 +12,12 @@ import torch
 from scipy.spatial.distance import mahalanobis
 from sklearn.covariance import LedoitWolf
 from sklearn.metrics import roc_auc_score
+from sklearn.mixture import GaussianMixture
 
 from msvdd.config import MSVDDConfig
 from msvdd.contract import Detector, ModelFormatError, WindowError, Windows
 from msvdd.model import FORMAT_VERSION, MSVDD, NotFittedError
+from msvdd.residual import FrameGaussian, FrameMixture
 from msvdd.synthetic import toy_windows
 
 
@@ -242,7 +245,7 @@ def test_mahalanobis_reconstruction_term_by_hand(
     model = MSVDD(cfg).fit(toy_train)
     # One Gaussian per modality: a log-mel frame is 2 channels x 32 bands, an IMU frame 8 samples x 7 axes.
     assert model.rec_gauss_ is not None
-    assert [g.mean.shape[0] for g in model.rec_gauss_] == [64, 56]
+    assert [g.mean.shape[0] for g in model.rec_gauss_ if isinstance(g, FrameGaussian)] == [64, 56]
     _, rec = model.score_components(toy_train)  # each modality in units of its training mean
     assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
 
@@ -270,3 +273,54 @@ def test_mahalanobis_reconstruction_term_by_hand(
     torch.save(payload, path)
     with pytest.raises(ModelFormatError, match="field 'rec_gauss' is missing"):
         MSVDD.load(path)
+
+
+def test_mixture_reconstruction_term_by_hand(
+    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    cfg = MSVDDConfig.smoke(
+        epochs=1,
+        audio_frontend="logmel",
+        imu_input="all",
+        rec_score="mixture",
+        rec_components=3,
+        val_fraction=0.0,
+    )
+    model = MSVDD(cfg).fit(toy_train)
+    assert model.rec_gauss_ is not None
+    assert [tuple(m.means.shape) for m in model.rec_gauss_ if isinstance(m, FrameMixture)] == [
+        (3, 64),
+        (3, 56),
+    ]
+    _, rec = model.score_components(toy_train)  # each modality in units of its training mean
+    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
+
+    # The IMU's term by hand: scikit-learn's mixture of the residual's 8-sample frames of the training
+    # windows (same seed), its score_samples, and sqrt(2 (largest nll - floor)), the floor being the
+    # smallest nll any component's peak gives.
+    def imu_frames(batch: Windows) -> np.ndarray:
+        a, i = model._tensors(batch)
+        with torch.inference_mode():
+            out = model.module.net(a, i)
+        assert out.imu_rec is not None
+        return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
+
+    peer = GaussianMixture(3, covariance_type="full", reg_covar=1e-3, random_state=cfg.seed)
+    peer.fit(imu_frames(toy_train).reshape(-1, 56))
+    log_peaks = [np.log(np.diag(p)).sum() - 28 * np.log(2 * np.pi) for p in peer.precisions_cholesky_]
+    test = toy_test[0].subset(slice(0, 4))
+    nll = (-peer.score_samples(imu_frames(test).reshape(-1, 56))).reshape(4, 50).max(axis=1)
+    _, parts = model._distance_and_parts(model._tensors(test))
+    np.testing.assert_allclose(parts[:, 1], np.sqrt(2 * (nll + max(log_peaks))), rtol=1e-6)
+    path = tmp_path / "m.pt"
+    model.save(path)
+    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
+
+
+def test_the_reconstruction_term_is_chosen_after_training(toy_train: Windows) -> None:
+    # `rec_score` changes scoring only: training "mixture" gives the network and D that "mahalanobis" gives.
+    cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", val_fraction=0.0)
+    a = MSVDD(dataclasses.replace(cfg, rec_score="mahalanobis")).fit(toy_train)
+    b = MSVDD(dataclasses.replace(cfg, rec_score="mixture", rec_components=2)).fit(toy_train)
+    batch = toy_train.subset(slice(0, 8))
+    np.testing.assert_array_equal(a.score_components(batch)[0], b.score_components(batch)[0])

@@ -236,6 +236,15 @@ def test_peak_reconstruction_score_is_in_units_of_training_means(
     np.testing.assert_allclose(model.score(toy_test[0]), d + (model.mean_d_ / model.mean_rec_) * rec)
 
 
+def _imu_residual_frames(model: MSVDD, batch: Windows) -> np.ndarray:
+    """(N, 50, 56) float64: the IMU residual x - x_hat of `batch` cut into 8-sample frames of 7 axes."""
+    a, i = model._tensors(batch)
+    with torch.inference_mode():
+        out = model.module.net(a, i)
+    assert out.imu_rec is not None
+    return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
+
+
 def test_mahalanobis_reconstruction_term_by_hand(
     toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
 ) -> None:
@@ -251,17 +260,12 @@ def test_mahalanobis_reconstruction_term_by_hand(
 
     # The IMU's term by hand: the residual's 8-sample frames of the training windows, scikit-learn's
     # Ledoit-Wolf covariance, scipy's Mahalanobis distance, the largest over each window's frames.
-    def imu_frames(batch: Windows) -> np.ndarray:
-        a, i = model._tensors(batch)
-        with torch.inference_mode():
-            out = model.module.net(a, i)
-        assert out.imu_rec is not None
-        return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
-
-    peer = LedoitWolf().fit(imu_frames(toy_train).reshape(-1, 56))
+    peer = LedoitWolf().fit(_imu_residual_frames(model, toy_train).reshape(-1, 56))
     precision = np.linalg.inv(peer.covariance_)
     test = toy_test[0].subset(slice(0, 4))
-    want = [max(mahalanobis(f, peer.location_, precision) for f in w) for w in imu_frames(test)]
+    want = [
+        max(mahalanobis(f, peer.location_, precision) for f in w) for w in _imu_residual_frames(model, test)
+    ]
     _, parts = model._distance_and_parts(model._tensors(test))
     np.testing.assert_allclose(parts[:, 1], want, rtol=1e-5)
     # Persistence, and a file without the Gaussians is refused naming the field.
@@ -298,18 +302,11 @@ def test_mixture_reconstruction_term_by_hand(
     # The IMU's term by hand: scikit-learn's mixture of the residual's 8-sample frames of the training
     # windows (same seed), its score_samples, and sqrt(2 (largest nll - floor)), the floor being the
     # smallest nll any component's peak gives.
-    def imu_frames(batch: Windows) -> np.ndarray:
-        a, i = model._tensors(batch)
-        with torch.inference_mode():
-            out = model.module.net(a, i)
-        assert out.imu_rec is not None
-        return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
-
     peer = GaussianMixture(3, covariance_type="full", reg_covar=1e-3, random_state=cfg.seed)
-    peer.fit(imu_frames(toy_train).reshape(-1, 56))
+    peer.fit(_imu_residual_frames(model, toy_train).reshape(-1, 56))
     log_peaks = [np.log(np.diag(p)).sum() - 28 * np.log(2 * np.pi) for p in peer.precisions_cholesky_]
     test = toy_test[0].subset(slice(0, 4))
-    nll = (-peer.score_samples(imu_frames(test).reshape(-1, 56))).reshape(4, 50).max(axis=1)
+    nll = (-peer.score_samples(_imu_residual_frames(model, test).reshape(-1, 56))).reshape(4, 50).max(axis=1)
     _, parts = model._distance_and_parts(model._tensors(test))
     np.testing.assert_allclose(parts[:, 1], np.sqrt(2 * (nll + max(log_peaks))), rtol=1e-6)
     path = tmp_path / "m.pt"

@@ -167,15 +167,12 @@ def mixture_nll(
     frames: torch.Tensor, log_weights: torch.Tensor, means: torch.Tensor, precision_cholesky: torch.Tensor
 ) -> torch.Tensor:
     """(..., p) frames -> (...) float64 -log sum_k w_k N(frame; m_k, C_k) (`FrameMixture`'s fields)."""
-    x = frames.to(torch.float64)
-    log_norms = _log_norms(precision_cholesky)
-    logp = torch.stack(
-        [
-            lw + ln - 0.5 * ((x - m) @ chol).square().sum(dim=-1)
-            for lw, ln, m, chol in zip(log_weights, log_norms, means, precision_cholesky, strict=True)
-        ],
-        dim=-1,
-    )
+    k, p = means.shape
+    # (x - m_k) P_k for every k from one product: x [P_1 ... P_K] - [m_1 P_1 ... m_K P_K].
+    stacked = precision_cholesky.permute(1, 0, 2).reshape(p, k * p)
+    offsets = torch.einsum("kp,kpq->kq", means, precision_cholesky)
+    y = (frames.to(torch.float64) @ stacked).unflatten(-1, (k, p)) - offsets
+    logp = log_weights + _log_norms(precision_cholesky) - 0.5 * y.square().sum(dim=-1)
     return -torch.logsumexp(logp, dim=-1)
 
 

@@ -388,7 +388,7 @@ class ScoreGraph(nn.Module):
         self.register_buffer("mu", model.mu_.detach().cpu().to(torch.float64).reshape(1, -1))
         self.register_buffer("whiten", torch.linalg.solve_triangular(chol, eye, upper=False).T.contiguous())
         self.register_buffer("rec_scale", _f64(np.asarray(model.rec_scale_, dtype=np.float64)))
-        # The residual frame Gaussians, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
+        # The residual frame densities, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
         self.frame_mean = nn.ParameterDict()
         self.frame_whiten = nn.ParameterDict()
         self.frame_log_weights = nn.ParameterDict()

@@ -109,7 +109,7 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
-        self.rec_gauss_: list[FrameGaussian | FrameMixture] | None = None
+        self.rec_density_: list[FrameGaussian | FrameMixture] | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -247,7 +247,7 @@ class MSVDD(Detector):
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
         if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
-            self.rec_gauss_ = self._fit_residual_densities(train_t)
+            self.rec_density_ = self._fit_residual_densities(train_t)
         d, parts = self._distance_and_parts(train_t)
         if cfg.rec_score != "mean" and parts.shape[1]:
             self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
@@ -292,11 +292,11 @@ class MSVDD(Detector):
             return [huber_per_window(x, x_hat) for x, x_hat, *_ in pairs]
         if self.config.rec_score == "peak":
             return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
-        if self.rec_gauss_ is None or len(self.rec_gauss_) != len(pairs):
+        if self.rec_density_ is None or len(self.rec_density_) != len(pairs):
             raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
         return [
             g.peak_distance(residual_frames(x, x_hat, axis, frame))
-            for g, (x, x_hat, axis, _, frame) in zip(self.rec_gauss_, pairs, strict=True)
+            for g, (x, x_hat, axis, _, frame) in zip(self.rec_density_, pairs, strict=True)
         ]
 
     def _fit_residual_densities(
@@ -384,7 +384,7 @@ class MSVDD(Detector):
             "mean_d": self.mean_d_,
             "mean_rec": self.mean_rec_,
             "rec_scale": torch.from_numpy(np.asarray(self.rec_scale_, dtype=np.float64)),
-            "rec_gauss": None if self.rec_gauss_ is None else [g.state() for g in self.rec_gauss_],
+            "rec_gauss": None if self.rec_density_ is None else [g.state() for g in self.rec_density_],
             "threshold": self.threshold_,
             "threshold_source": self.threshold_source_,
             "history": None if self.history_ is None else self.history_.to_dict(),
@@ -450,7 +450,7 @@ class MSVDD(Detector):
             density: type[FrameGaussian] | type[FrameMixture] = (
                 FrameMixture if model.config.rec_score == "mixture" else FrameGaussian
             )
-            model.rec_gauss_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
+            model.rec_density_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)

@@ -130,7 +130,7 @@ class FrameMixture:
     @property
     def floor(self) -> float:
         """The smallest negative log-likelihood the mixture can give: -max_k log N(m_k; m_k, C_k)."""
-        return -float(_log_norms(self.precision_cholesky).max())
+        return float(_floor(self.precision_cholesky))
 
     def nll(self, frames: torch.Tensor) -> torch.Tensor:
         """(..., p) frames -> (...) float64 negative log-likelihood under the mixture."""
@@ -163,6 +163,11 @@ def _log_norms(precision_cholesky: torch.Tensor) -> torch.Tensor:
     return logdet - 0.5 * p * math.log(2.0 * math.pi)
 
 
+def _floor(precision_cholesky: torch.Tensor) -> torch.Tensor:
+    """-max_k log N(m_k; m_k, C_k): a mixture's density is at most its largest component peak."""
+    return -_log_norms(precision_cholesky).max()
+
+
 def mixture_nll(
     frames: torch.Tensor, log_weights: torch.Tensor, means: torch.Tensor, precision_cholesky: torch.Tensor
 ) -> torch.Tensor:
@@ -182,8 +187,7 @@ def mixture_peak_distance(
     """(N, T, p) frames -> (N,) float64 sqrt(2 (nll - floor)) of each window's least likely frame, the floor
     -max_k log N(m_k; m_k, C_k) being the smallest negative log-likelihood the mixture can give."""
     nll = mixture_nll(frames, log_weights, means, precision_cholesky).amax(dim=1)
-    floor = -_log_norms(precision_cholesky).max()
-    return (2.0 * (nll - floor).clamp_min(0.0)).sqrt()
+    return (2.0 * (nll - _floor(precision_cholesky)).clamp_min(0.0)).sqrt()
 
 
 def fit_frame_mixture(frames: torch.Tensor, components: int, seed: int) -> FrameMixture:

@@ -394,11 +394,11 @@ class ScoreGraph(nn.Module):
         self.frame_log_weights = nn.ParameterDict()
         self.frame_precision_cholesky = nn.ParameterDict()
         if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
-            if model.rec_gauss_ is None:
+            if model.rec_density_ is None:
                 raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
             decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
             names = [name for name, decoder in decoders if decoder is not None]
-            for name, g in zip(names, model.rec_gauss_, strict=True):
+            for name, g in zip(names, model.rec_density_, strict=True):
                 if isinstance(g, FrameMixture):
                     self.frame_log_weights[name] = _constant(g.log_weights)
                     self.frame_mean[name] = _constant(g.means)

@@ -253,8 +253,8 @@ def test_mahalanobis_reconstruction_term_by_hand(
     )
     model = MSVDD(cfg).fit(toy_train)
     # One Gaussian per modality: a log-mel frame is 2 channels x 32 bands, an IMU frame 8 samples x 7 axes.
-    assert model.rec_gauss_ is not None
-    assert [g.mean.shape[0] for g in model.rec_gauss_ if isinstance(g, FrameGaussian)] == [64, 56]
+    assert model.rec_density_ is not None
+    assert [g.mean.shape[0] for g in model.rec_density_ if isinstance(g, FrameGaussian)] == [64, 56]
     _, rec = model.score_components(toy_train)  # each modality in units of its training mean
     assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
 
@@ -291,8 +291,8 @@ def test_mixture_reconstruction_term_by_hand(
         val_fraction=0.0,
     )
     model = MSVDD(cfg).fit(toy_train)
-    assert model.rec_gauss_ is not None
-    assert [tuple(m.means.shape) for m in model.rec_gauss_ if isinstance(m, FrameMixture)] == [
+    assert model.rec_density_ is not None
+    assert [tuple(m.means.shape) for m in model.rec_density_ if isinstance(m, FrameMixture)] == [
         (3, 64),
         (3, 56),
     ]

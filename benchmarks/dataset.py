@@ -30,6 +30,7 @@ from benchmarks.episode import (
     IMPORTED_EPISODE_FILES,
     SIMULATED,
     EpisodeMeta,
+    fault_severity,
     read_episode,
     read_imu_signals,
     software_versions,
@@ -488,6 +489,16 @@ class Dataset:
     def categories(self) -> dict[str, str]:
         """Episode id -> category (`nominal`, `collision`, `fault`)."""
         return {e.episode_id: e.spec.category for e in self.manifest.episodes}
+
+    def fault_severities(self) -> dict[str, float]:
+        """Fault severity (0..1) of every fault episode that has a window in the table, by episode id, from
+        its scenario (`benchmarks.episode.fault_severity`); empty for a dataset of recordings."""
+        if self.source == IMPORTED:
+            return {}
+        windowed = {r.episode for r in self.windows}
+        faulty = sorted(e for e, c in self.categories().items() if c == "fault" and e in windowed)
+        found = {e: fault_severity(self.path / e) for e in faulty}
+        return {e: s for e, s in found.items() if s is not None}
 
     def rows(self, split: str) -> list[WindowRow]:
         """Window rows of one split."""

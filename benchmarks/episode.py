@@ -151,6 +151,23 @@ def is_episode_folder(path: Path) -> bool:
     return (Path(path) / META_FILE).is_file()
 
 
+def fault_severity(folder: Path) -> float | None:
+    """The severity (0..1) of an episode's fault, read from its `meta.json` scenario alone (no signal is
+    loaded): the largest over its faults; None for an episode without faults or imported from recordings.
+
+    Raises:
+        EpisodeError: no `meta.json`, or a fault without a numeric severity.
+    """
+    path = Path(folder) / META_FILE
+    if not path.is_file():
+        raise EpisodeError(f"{folder}: missing episode file {META_FILE}")
+    faults = json.loads(path.read_text()).get("scenario", {}).get("faults", [])
+    try:
+        return max((float(f["severity"]) for f in faults), default=None)
+    except (KeyError, TypeError, ValueError) as err:
+        raise EpisodeError(f"{path}: a fault of the scenario has no numeric severity ({err})") from err
+
+
 def audio_file(folder: Path) -> Path:
     """The path of an episode folder's encoded audio."""
     return Path(folder) / AUDIO_FILE

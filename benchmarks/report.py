@@ -7,6 +7,7 @@ with its paired AUC difference against M-SVDD on the same episode draws.
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -131,14 +132,50 @@ class RunIntervals:
     """Seed of the episode draws."""
 
 
+SEVERITY_BINS: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""Edges of the fault-severity bins of the AUCs by severity: [lo, hi), the last one closed at 1."""
+
+
+def severity_bins() -> list[tuple[str, float, float]]:
+    """(label "lo-hi", lo, hi) of each fault-severity bin."""
+    return [(f"{lo:.2f}-{hi:.2f}", lo, hi) for lo, hi in itertools.pairwise(SEVERITY_BINS)]
+
+
+def severity_key(label: str, sub_kind: str = "mechanical") -> str:
+    """The AUC key of one severity bin: all fault windows (`mechanical`) or one fault sub-kind's."""
+    return f"auc_{sub_kind}_severity_{label}"
+
+
+def _severity_subsets(
+    kinds: np.ndarray, sub_kinds: np.ndarray, episodes: np.ndarray, severity: Mapping[str, float]
+) -> dict[str, np.ndarray]:
+    """Every normal window against the fault windows of one severity bin (all faults, then each fault
+    sub-kind), for the bins that hold any; a fault window of an episode `severity` does not name is left
+    out of every bin."""
+    normal = kinds == "normal"
+    faulty = (kinds == "mechanical") & np.isin(episodes, list(severity))
+    sev = np.array([severity.get(e, math.nan) for e in episodes], dtype=np.float64)
+    out: dict[str, np.ndarray] = {}
+    for label, lo, hi in severity_bins():
+        in_bin = faulty & (sev >= lo) & ((sev < hi) | ((hi == SEVERITY_BINS[-1]) & (sev <= hi)))
+        if not in_bin.any():
+            continue
+        out[severity_key(label)] = normal | in_bin
+        for sub in sorted(set(sub_kinds[in_bin])):
+            out[severity_key(label, sub)] = normal | (in_bin & (sub_kinds == sub))
+    return out
+
+
 def auc_intervals(
     rows: Sequence[WindowRow],
     scores: Sequence[MethodScores],
     reference: str = REFERENCE_METHOD,
     replicates: int = BOOTSTRAP_REPLICATES,
     seed: int = BOOTSTRAP_SEED,
+    severity: Mapping[str, float] | None = None,
 ) -> RunIntervals:
-    """Every method's AUCs (overall, collision, mechanical, per sub-kind) with episode-cluster intervals.
+    """Every method's AUCs (overall, collision, mechanical, per sub-kind; with `severity`, the fault
+    episodes' severities by episode id, also per severity bin) with episode-cluster intervals.
 
     The clusters are the test windows' episodes. Each AUC subset (every normal window against one group of
     anomalous windows) gets one set of episode draws, applied to every seed of every method: a method's AUC
@@ -159,6 +196,7 @@ def auc_intervals(
     }
     for sub in sorted(set(sub_kinds[~normal])):
         subsets[f"auc_{sub}"] = normal | (sub_kinds == sub)
+    subsets.update(_severity_subsets(kinds, sub_kinds, episodes, severity or {}))
     auc: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
     diff: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
     for key, keep in subsets.items():
@@ -441,6 +479,7 @@ def markdown(
         "",
         *_sub_kind_table(per_method, intervals),
         "",
+        *_severity_table(per_method, intervals),
         "## Fit time",
         "",
         "| Method | Fit (s) |",
@@ -484,6 +523,33 @@ def _sub_kind_table(
         ]
         lines.append(f"| {sub} | " + " | ".join(cells) + " |")
     return lines
+
+
+def _severity_table(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None
+) -> list[str]:
+    """Rows per fault-severity bin (every fault kind together), columns for the comparison, reference and
+    naive methods; nothing when the run has no severities (a dataset of recordings) or no intervals."""
+    if intervals is None:
+        return []
+    names = [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
+    names = [n for n in names if n in intervals.methods]
+    labels = [
+        b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)
+    ]
+    if not labels:
+        return []
+    lines = [
+        "## Fault AUC (%) by fault severity (normal windows against the fault windows of episodes whose fault"
+        " severity is in the bin; per fault kind in results.json)",
+        "",
+        "| Severity | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for label in labels:
+        cells = [_auc_cell(intervals, n, severity_key(label)) or "n/a" for n in names]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
 
 
 def results_json(
@@ -615,10 +681,12 @@ def write_report(
     rows: Sequence[WindowRow],
     scores: Sequence[MethodScores],
     per_method: Mapping[str, Sequence[MethodMetrics]],
+    severity: Mapping[str, float] | None = None,
 ) -> None:
-    """Write every output of a run into `directory`."""
+    """Write every output of a run into `directory` (`severity`: fault severity by episode id, for the AUCs
+    by severity; `benchmarks.dataset.Dataset.fault_severities`)."""
     directory.mkdir(parents=True, exist_ok=True)
-    intervals = auc_intervals(rows, scores)
+    intervals = auc_intervals(rows, scores, severity=severity)
     doc = results_json(info, per_method, intervals)
     (directory / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
     write_scores_csv(directory / "scores.csv", rows, scores)

@@ -216,7 +216,7 @@ def _train_and_report(
         dev=dev_text,
         dataset_fingerprint=dataset.fingerprint,
     )
-    write_report(tmp, info, rows, scores, per_method)
+    write_report(tmp, info, rows, scores, per_method, dataset.fault_severities())
 
 
 def _train_models(

@@ -64,7 +64,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         if progress:
             print("writing the report (bootstrap intervals, ROC figures)", file=sys.stderr, flush=True)
-        write_report(tmp, info, rows, scores, per_method)
+        write_report(tmp, info, rows, scores, per_method, dataset.fault_severities())
         os.replace(tmp, args.out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

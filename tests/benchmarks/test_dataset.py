@@ -218,3 +218,26 @@ def test_a_manifest_with_the_former_budget_names_reads_as_the_budgets(
     assert manifest.preset.method_scale == new
     data = ds.open_dataset(tiny_dataset, verify=False)
     assert ds.Dataset(data.path, manifest, data.windows).preset.method_scale == new
+
+
+def test_fault_severities_are_the_scenarios_fault_severities(tiny_dataset: Path) -> None:
+    """Independent reader: the full episode (`read_episode`) holds the scenario the severities come from."""
+    data = ds.open_dataset(tiny_dataset)
+    found = data.fault_severities()
+    faulty = {e for e, c in data.categories().items() if c == "fault"}
+    assert found and set(found) == faulty
+    for episode, value in found.items():
+        faults = read_episode(tiny_dataset / episode).scenario["faults"]
+        assert value == max(float(f["severity"]) for f in faults) and 0.0 <= value <= 1.0
+
+
+def test_fault_severity_names_the_file_it_cannot_read(tmp_path: Path) -> None:
+    from benchmarks.episode import EpisodeError, fault_severity
+
+    with pytest.raises(EpisodeError, match=r"meta\.json"):
+        fault_severity(tmp_path)
+    (tmp_path / "meta.json").write_text(json.dumps({"scenario": {"faults": [{"kind": "bearing"}]}}))
+    with pytest.raises(EpisodeError, match=r"meta\.json: a fault of the scenario has no numeric severity"):
+        fault_severity(tmp_path)
+    (tmp_path / "meta.json").write_text(json.dumps({"scenario": {"faults": []}}))
+    assert fault_severity(tmp_path) is None

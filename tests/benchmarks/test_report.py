@@ -77,10 +77,11 @@ def test_a_real_tiny_run_reports_intervals_and_differences(
     models = [TrainedModel(name, 0, detector, tiny_model, 1.0)]
     models += [train_method(dataset, "audio-rms", s, "smoke", tmp_path / f"rms{s}") for s in (0, 1)]
     scores, per_method, rows = score_and_measure(dataset, models, progress=False)
-    write_report(tmp_path / "run", INFO, rows, scores, per_method)
+    write_report(tmp_path / "run", INFO, rows, scores, per_method, dataset.fault_severities())
 
     doc = json.loads((tmp_path / "run" / "results.json").read_text())
     assert doc["uncertainty"]["reference"] == "msvdd"
+    assert any("_severity_" in key for key in doc["methods"]["msvdd"]["auc_ci95"])
     assert doc["uncertainty"]["normal_episodes"] == 2
     for method in ("msvdd", "audio-rms"):
         entry = doc["methods"][method]
@@ -111,3 +112,63 @@ def test_table1_marks_the_svdd_rows_as_ocsvm_and_labels_the_dcase_baseline() -> 
     assert "| SVDD † (early fusion) |" in text and "| DCASE AE (log-mel) |" in text
     assert SVDD_NOTE in text and "duals coincide" in SVDD_NOTE
     assert SVDD_NOTE not in markdown(INFO, {"dcase-ae": per_method["dcase-ae"]})
+
+
+def _severity_rows() -> tuple[list[WindowRow], dict[str, float]]:
+    """4 normal episodes of 5 windows; fault episodes of 3 windows at severities on and inside the bin
+    edges (0.25 opens the second bin, 1.0 closes the last); `f_unknown` has no recorded severity."""
+    severity = {"f0": 0.1, "f1": 0.2, "f2": 0.25, "f3": 0.4, "f4": 0.8, "f5": 1.0}
+    rows: list[WindowRow] = []
+    plan = [("normal", "none", f"n{i}", 5) for i in range(4)]
+    plan += [("mechanical", "bearing" if e in ("f0", "f2", "f4") else "imbalance", e, 3) for e in severity]
+    plan += [("mechanical", "bearing", "f_unknown", 3), ("collision", "wall", "c0", 2)]
+    for kind, sub, episode, n in plan:
+        for k in range(n):
+            rows.append(WindowRow(len(rows), episode, 2.0 * k, "test", 0, kind, sub, -1, 0))
+    return rows, severity
+
+
+def test_aucs_by_fault_severity_are_the_plain_aucs_of_each_bin() -> None:
+    """Oracle: each severity bin's AUC is scikit-learn's AUC of the normal windows against that bin's fault
+    windows; a fault score that grows with severity gives AUCs that grow bin by bin."""
+    from sklearn.metrics import roc_auc_score
+
+    from benchmarks.report import severity_key
+
+    rows, severity = _severity_rows()
+    rng = np.random.default_rng(3)
+    sev = np.array([severity.get(r.episode, 0.5) for r in rows])
+    normal = np.array([r.kind == "normal" for r in rows])
+    scores = np.where(normal, rng.normal(size=len(rows)), 4.0 * sev - 1.5 + 0.3 * rng.normal(size=len(rows)))
+    run = auc_intervals(rows, [MethodScores("msvdd", 0, scores, 0.0)], replicates=50, severity=severity)
+    auc = run.methods["msvdd"].auc
+    bins = {"0.00-0.25": ("f0", "f1"), "0.25-0.50": ("f2", "f3"), "0.75-1.00": ("f4", "f5")}
+    expected_keys = {  # no fault episode lies in 0.50-0.75
+        severity_key(label, sub) for label in bins for sub in ("mechanical", "bearing", "imbalance")
+    }
+    assert {k for k in auc if "_severity_" in k} == expected_keys
+    episodes = np.array([r.episode for r in rows])
+    values = []
+    for label, members in bins.items():
+        keep = normal | np.isin(episodes, members)
+        expected = roc_auc_score(~normal[keep], scores[keep])
+        assert auc[severity_key(label)].value == pytest.approx(expected, abs=1e-12)
+        values.append(expected)
+    assert values[0] < values[1] < values[2]
+    keep = normal | (episodes == "f5")  # severity 1.0 belongs to the last bin, as imbalance there
+    assert auc[severity_key("0.75-1.00", "imbalance")].value == pytest.approx(
+        roc_auc_score(~normal[keep], scores[keep]), abs=1e-12
+    )
+
+
+def test_the_severity_table_is_in_the_report_only_when_severities_are_known() -> None:
+    rows, severity = _severity_rows()
+    kinds = np.array([r.kind for r in rows])
+    scores = [_scores(rows, "msvdd", 0, 1.0)]
+    per_method = {"msvdd": [compute_metrics(scores[0].scores, 0.5, kinds)]}
+    with_sev = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50, severity=severity))
+    assert "by fault severity" in with_sev
+    table = with_sev.split("by fault severity")[1].split("\n## ")[0]
+    assert "| 0.00-0.25 |" in table and "| 0.75-1.00 |" in table and "| 0.50-0.75 |" not in table
+    without = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50))
+    assert "by fault severity" not in without

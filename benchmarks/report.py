@@ -153,11 +153,12 @@ def _severity_subsets(
     sub-kind), for the bins that hold any; a fault window of an episode `severity` does not name is left
     out of every bin."""
     normal = kinds == "normal"
-    faulty = (kinds == "mechanical") & np.isin(episodes, list(severity))
-    sev = np.array([severity.get(e, math.nan) for e in episodes], dtype=np.float64)
+    faulty = kinds == "mechanical"
+    sev = np.array([severity.get(e, math.nan) for e in episodes], dtype=np.float64)  # NaN: in no bin
     out: dict[str, np.ndarray] = {}
     for label, lo, hi in severity_bins():
-        in_bin = faulty & (sev >= lo) & ((sev < hi) | ((hi == SEVERITY_BINS[-1]) & (sev <= hi)))
+        below_top = (sev <= hi) if hi == SEVERITY_BINS[-1] else (sev < hi)
+        in_bin = faulty & (sev >= lo) & below_top
         if not in_bin.any():
             continue
         out[severity_key(label)] = normal | in_bin

@@ -509,12 +509,18 @@ def _other_methods(
     ]
 
 
+def _breakdown_methods(per_method: Mapping[str, Sequence[MethodMetrics]]) -> list[str]:
+    """The comparison, reference and naive methods of the run, in table order: the columns of the
+    sub-kind and severity tables."""
+    return [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
+
+
 def _sub_kind_table(
     per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
 ) -> list[str]:
     """Rows per anomaly sub-kind, columns for the comparison and naive methods (ablations stay in JSON)."""
     subs = sorted({s for runs in per_method.values() for r in runs for s in r.auc_by_sub_kind})
-    names = [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
+    names = _breakdown_methods(per_method)
     lines = ["| Sub-kind | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for sub in subs:
         cells = [
@@ -533,7 +539,7 @@ def _severity_table(
     naive methods; nothing when the run has no severities (a dataset of recordings) or no intervals."""
     if intervals is None:
         return []
-    names = [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
+    names = _breakdown_methods(per_method)
     names = [n for n in names if n in intervals.methods]
     labels = [
         b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)

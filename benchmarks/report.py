@@ -481,6 +481,7 @@ def markdown(
         *_sub_kind_table(per_method, intervals),
         "",
         *_severity_table(per_method, intervals),
+        *_severity_by_kind_table(intervals),
         "## Fit time",
         "",
         "| Method | Fit (s) |",
@@ -548,7 +549,7 @@ def _severity_table(
         return []
     lines = [
         "## Fault AUC (%) by fault severity (normal windows against the fault windows of episodes whose fault"
-        " severity is in the bin; per fault kind in results.json)",
+        " severity is in the bin; every method's per fault kind in results.json)",
         "",
         "| Severity | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),
@@ -556,6 +557,37 @@ def _severity_table(
     for label in labels:
         cells = [_auc_cell(intervals, n, severity_key(label)) or "n/a" for n in names]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def _severity_by_kind_table(intervals: RunIntervals | None) -> list[str]:
+    """The paired-difference reference's fault AUC per fault kind (rows) and severity bin (columns), for
+    the bins and kinds that hold fault windows; nothing without severities, intervals or reference."""
+    reference = intervals.reference if intervals is not None else None
+    if intervals is None or reference is None or reference not in intervals.methods:
+        return []
+    auc = intervals.methods[reference].auc
+    labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
+    kinds = sorted(
+        {
+            key.removeprefix("auc_").removesuffix(f"_severity_{label}")
+            for key in auc
+            for label in labels
+            if key.startswith("auc_") and key.endswith(f"_severity_{label}")
+        }
+        - {"mechanical"}
+    )
+    if not kinds:
+        return []
+    lines = [
+        f"## Fault AUC (%) of `{reference}` by fault kind and severity",
+        "",
+        "| Fault kind | " + " | ".join(labels) + " |",
+        "|---|" + "---|" * len(labels),
+    ]
+    for kind in kinds:
+        cells = [_auc_cell(intervals, reference, severity_key(b, kind)) or "n/a" for b in labels]
+        lines.append(f"| {kind} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 
 

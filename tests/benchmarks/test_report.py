@@ -172,3 +172,30 @@ def test_the_severity_table_is_in_the_report_only_when_severities_are_known() ->
     assert "| 0.00-0.25 |" in table and "| 0.75-1.00 |" in table and "| 0.50-0.75 |" not in table
     without = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50))
     assert "by fault severity" not in without
+    assert "by fault kind and severity" not in without
+
+
+def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
+    """Rows are the fault kinds, columns the bins that hold fault windows; each cell is that kind's AUC in
+    that bin with its interval, n/a where the kind has no window in the bin."""
+    from benchmarks.report import severity_key
+    from benchmarks.uncertainty import format_interval
+
+    rows, severity = _severity_rows()
+    kinds = np.array([r.kind for r in rows])
+    scores = [_scores(rows, "msvdd", 0, 1.0)]
+    per_method = {"msvdd": [compute_metrics(scores[0].scores, 0.5, kinds)]}
+    run = auc_intervals(rows, scores, replicates=50, severity=severity)
+    text = markdown(INFO, per_method, run)
+    table = text.split("## Fault AUC (%) of `msvdd` by fault kind and severity")[1].split("\n## ")[0]
+    lines = [line for line in table.splitlines() if line.startswith("| ")]
+    assert lines[0] == "| Fault kind | 0.00-0.25 | 0.25-0.50 | 0.75-1.00 |"
+    auc = run.methods["msvdd"].auc
+    bins = ("0.00-0.25", "0.25-0.50", "0.75-1.00")
+    for line, kind in zip(lines[1:], ("bearing", "imbalance"), strict=True):
+        # every kind has one episode in each of these bins (bearing f0, f2, f4; imbalance f1, f3, f5)
+        assert (
+            line
+            == f"| {kind} | " + " | ".join(format_interval(auc[severity_key(b, kind)]) for b in bins) + " |"
+        )
+    assert len(lines) == 3

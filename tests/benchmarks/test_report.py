@@ -176,8 +176,8 @@ def test_the_severity_table_is_in_the_report_only_when_severities_are_known() ->
 
 
 def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
-    """Rows are the fault kinds, columns the bins that hold fault windows; each cell is that kind's AUC in
-    that bin with its interval, n/a where the kind has no window in the bin."""
+    """Rows are the fault kinds, columns the bins that hold fault windows (the empty 0.50-0.75 is left out);
+    each cell is that kind's AUC in that bin with its interval (the AUCs: the oracle test above)."""
     from benchmarks.report import severity_key
     from benchmarks.uncertainty import format_interval
 

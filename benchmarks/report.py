@@ -568,15 +568,8 @@ def _severity_by_kind_table(intervals: RunIntervals | None) -> list[str]:
         return []
     auc = intervals.methods[reference].auc
     labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
-    kinds = sorted(
-        {
-            key.removeprefix("auc_").removesuffix(f"_severity_{label}")
-            for key in auc
-            for label in labels
-            if key.startswith("auc_") and key.endswith(f"_severity_{label}")
-        }
-        - {"mechanical"}
-    )
+    subs = {key.removeprefix("auc_") for key in auc if key.startswith("auc_")} - {"mechanical"}
+    kinds = sorted(k for k in subs if any(severity_key(b, k) in auc for b in labels))
     if not kinds:
         return []
     lines = [

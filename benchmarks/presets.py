@@ -134,6 +134,7 @@ TABLE1_METHODS: tuple[str, ...] = (
     "gaussian-early",
     "gaussian-frames",
     "mixture-frames",
+    "context-frames",
     "audio-rms",
     "imu-kurtosis",
 )

@@ -190,9 +190,10 @@ def mixture_peak_distance(
     return (2.0 * (nll - _floor(precision_cholesky)).clamp_min(0.0)).sqrt()
 
 
-def fit_frame_mixture(frames: torch.Tensor, components: int, seed: int) -> FrameMixture:
+def fit_frame_mixture(frames: torch.Tensor, components: int, seed: int, max_iter: int = 100) -> FrameMixture:
     """The `FrameMixture` of training frames (n, p): scikit-learn's `GaussianMixture` (full covariances,
-    `MIXTURE_REG` on the diagonal, k-means start with `seed`) on a seeded sample of `MIXTURE_FRAMES` frames.
+    `MIXTURE_REG` on the diagonal, k-means start with `seed`, at most `max_iter` EM iterations) on a seeded
+    sample of `MIXTURE_FRAMES` frames.
 
     Raises:
         ValueError: fewer frames than components.
@@ -208,7 +209,9 @@ def fit_frame_mixture(frames: torch.Tensor, components: int, seed: int) -> Frame
     if n > MIXTURE_FRAMES:
         rows = np.sort(np.random.default_rng(seed).choice(n, MIXTURE_FRAMES, replace=False))
     x = frames[torch.from_numpy(rows)].to(torch.float64).cpu().numpy()
-    mixture = GaussianMixture(components, covariance_type="full", reg_covar=MIXTURE_REG, random_state=seed)
+    mixture = GaussianMixture(
+        components, covariance_type="full", reg_covar=MIXTURE_REG, random_state=seed, max_iter=max_iter
+    )
     mixture.fit(x)
     device = frames.device
     return FrameMixture(

@@ -1,5 +1,5 @@
-"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network) and `mixture-frames` against
-scikit-learn, scipy."""
+"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network), `mixture-frames` and
+`context-frames` against scikit-learn, scipy and `msvdd.context`."""
 
 from __future__ import annotations
 
@@ -8,13 +8,20 @@ from typing import Any
 
 import numpy as np
 import pytest
+import torch
 from scipy.spatial.distance import mahalanobis
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 from sklearn.covariance import LedoitWolf
 
 from benchmarks import methods
-from benchmarks.methods.frames import MIXTURE_COMPONENTS, FrameReference, MixtureFrameReference
+from benchmarks.methods.frames import (
+    MIXTURE_COMPONENTS,
+    ContextFrameReference,
+    FrameReference,
+    MixtureFrameReference,
+)
+from msvdd.context import CONTEXT_DIM, CONTEXT_NEIGHBOURS, fit_context_mixture
 from msvdd.contract import WindowError
 from msvdd.frontend import InputNormalizer
 from msvdd.residual import MIXTURE_REG
@@ -112,3 +119,28 @@ def test_mixture_needs_as_many_frames_as_components() -> None:
         MixtureFrameReference(seed=0, components=200).fit(train)
     with pytest.raises(ValueError, match="components = 0 is invalid"):
         MixtureFrameReference(components=0)
+
+
+def test_context_scores_are_conditional_peak_distances_in_units_of_training_means(tmp_path: Path) -> None:
+    train, _ = toy_windows(40, 0, seed=3)
+    test, labels = toy_windows(3, 3, seed=4)
+    det = methods.make("context-frames", seed=5, scale="smoke").fit(train)
+    assert isinstance(det, ContextFrameReference)
+    # By hand: msvdd's normalised input frames per modality (log-mel 67 x 64, IMU 50 x 56), each modality's
+    # conditional mixture given two neighbours on either side (`msvdd.context`, tested there against the
+    # Gaussian conditional), its largest conditional distance over a window, over its training mean; summed.
+    norm = InputNormalizer.fit(train, "logmel", "all")
+    want = np.zeros(len(test))
+    for tr, te in zip(_input_frames(norm, train), _input_frames(norm, test), strict=True):
+        model = fit_context_mixture(torch.from_numpy(tr), MIXTURE_COMPONENTS, seed=5)
+        assert model.neighbours == CONTEXT_NEIGHBOURS and model.basis.shape[1] == CONTEXT_DIM
+        want += (
+            model.peak_distance(torch.from_numpy(te)).numpy()
+            / model.peak_distance(torch.from_numpy(tr)).numpy().mean()
+        )
+    np.testing.assert_allclose(det.score(test), want, rtol=1e-6)
+    assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
+    det.save(tmp_path / "m.npz")
+    np.testing.assert_array_equal(ContextFrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
+    with pytest.raises(WindowError, match="at least 200 training frames per modality; got 134"):
+        ContextFrameReference(seed=0, components=200).fit(toy_windows(2, 0, seed=6)[0])

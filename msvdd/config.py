@@ -11,7 +11,7 @@ from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 from msvdd.residual import MIXTURE_COMPONENTS
 
-REC_SCORES = ("mean", "peak", "mahalanobis", "mixture")
+REC_SCORES = ("mean", "peak", "mahalanobis", "mixture", "context")
 """Allowed `rec_score` values."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
@@ -51,10 +51,11 @@ class MSVDDConfig:
     """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
     modalities), "peak" (per modality its largest per-time-step error over its training mean, summed) or
     "mahalanobis" (per modality the largest Mahalanobis distance of a residual frame under a Gaussian of the
-    training residuals, `msvdd.residual`, over its training mean, summed) or "mixture" (the same with a
-    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`)."""
+    training residuals, `msvdd.residual`, over its training mean, summed), "mixture" (the same with a
+    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`) or "context" (the same with
+    the mixture of each residual frame given its neighbouring residual frames, `msvdd.context`)."""
     rec_components: int = MIXTURE_COMPONENTS
-    """Components of each modality's residual frame mixture (`rec_score="mixture"` only)."""
+    """Components of each modality's residual frame mixtures (`rec_score="mixture"` or `"context"` only)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from msvdd.residual import MIXTURE_FRAMES, FrameMixture, fit_frame_mixture
+from msvdd.residual import MIXTURE_FRAMES, FrameMixture, fit_frame_mixture, mixture_nll
 
 CONTEXT_NEIGHBOURS = 2
 """Frames on each side of x_t that make its context (chosen on the dev dataset)."""
@@ -63,6 +63,21 @@ def neighbour_context(frames: torch.Tensor, neighbours: int) -> torch.Tensor:
     return torch.cat([frames[:, (t + o).clamp(0, steps - 1)] for o in _offsets(neighbours)], dim=2)
 
 
+def context_nll(
+    frames: torch.Tensor,
+    neighbours: int,
+    center: torch.Tensor,
+    basis: torch.Tensor,
+    joint: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    context: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+) -> torch.Tensor:
+    """(N, T, p) window frames -> (N, T) float64 -log p(x_t | c_t) in one pass (`ContextMixture`'s fields;
+    each mixture as (log_weights, means, precision_cholesky)); `ContextMixture.nll` runs it in blocks."""
+    x = frames.to(torch.float64)
+    c = (neighbour_context(x, neighbours) - center) @ basis
+    return mixture_nll(torch.cat([x, c], dim=2), *joint) - mixture_nll(c, *context)
+
+
 @dataclass(frozen=True)
 class ContextMixture:
     """The conditional frame density p(x_t | c_t) of the module docstring; `fit_context_mixture` builds it."""
@@ -87,11 +102,12 @@ class ContextMixture:
 
     def nll(self, frames: torch.Tensor) -> torch.Tensor:
         """(N, T, p) window frames -> (N, T) float64 -log p(x_t | c_t), computed in blocks of windows."""
-        out = []
-        for block in frames.split(_BLOCK):
-            x = block.to(torch.float64)
-            c = self.project(x)
-            out.append(self.joint.nll(torch.cat([x, c], dim=2)) - self.context.nll(c))
+        joint = (self.joint.log_weights, self.joint.means, self.joint.precision_cholesky)
+        context = (self.context.log_weights, self.context.means, self.context.precision_cholesky)
+        out = [
+            context_nll(block, self.neighbours, self.center, self.basis, joint, context)
+            for block in frames.split(_BLOCK)
+        ]
         if not out:
             return torch.zeros(0, frames.shape[1], dtype=torch.float64, device=frames.device)
         return torch.cat(out)

@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from msvdd.config import MSVDDConfig
+from msvdd.context import ContextMixture, fit_context_mixture
 from msvdd.contract import (
     Detector,
     ModelFormatError,
@@ -62,8 +63,11 @@ history; 3: the residual frame densities of `rec_score="mahalanobis"` and `"mixt
 versions 1 (the paper's waveform and z-velocity) and 2, refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
-FRAME_DENSITY_SCORES = ("mahalanobis", "mixture")
+FRAME_DENSITY_SCORES = ("mahalanobis", "mixture", "context")
 """`rec_score`s that fit a density of the training windows' residual frames after training."""
+FrameDensity = FrameGaussian | FrameMixture | ContextMixture
+"""A residual frame density: `FrameGaussian` ("mahalanobis"), `FrameMixture` ("mixture") or `ContextMixture`
+("context")."""
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 """Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
 
@@ -109,7 +113,7 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
-        self.rec_density_: list[FrameGaussian | FrameMixture] | None = None
+        self.rec_density_: list[FrameDensity] | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -299,11 +303,8 @@ class MSVDD(Detector):
             for g, (x, x_hat, axis, _, frame) in zip(self.rec_density_, pairs, strict=True)
         ]
 
-    def _fit_residual_densities(
-        self, tensors: tuple[torch.Tensor, torch.Tensor]
-    ) -> list[FrameGaussian | FrameMixture]:
-        """One `FrameGaussian` ("mahalanobis") or `FrameMixture` ("mixture") per reconstructed modality over
-        the residual frames of `tensors`."""
+    def _fit_residual_densities(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> list[FrameDensity]:
+        """One density of the residual frames of `tensors` per reconstructed modality (`FrameDensity`)."""
         frames: list[list[torch.Tensor]] = []
         with torch.inference_mode():
             for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
@@ -311,12 +312,15 @@ class MSVDD(Detector):
                 pairs = self._rec_pairs(self.module.net(a, i), a, i)
                 frames = frames or [[] for _ in pairs]
                 for store, (x, x_hat, axis, _, frame) in zip(frames, pairs, strict=True):
-                    f = residual_frames(x, x_hat, axis, frame)
-                    store.append(f.reshape(-1, f.shape[2]))
+                    store.append(residual_frames(x, x_hat, axis, frame))
         cfg = self.config
+        windows = [torch.cat(f) for f in frames]  # (N, T, p) per modality
+        if cfg.rec_score == "context":
+            return [fit_context_mixture(w, cfg.rec_components, cfg.seed) for w in windows]
+        flat = [w.reshape(-1, w.shape[2]) for w in windows]
         if cfg.rec_score == "mixture":
-            return [fit_frame_mixture(torch.cat(f), cfg.rec_components, cfg.seed) for f in frames]
-        return [fit_frame_gaussian(torch.cat(f)) for f in frames]
+            return [fit_frame_mixture(f, cfg.rec_components, cfg.seed) for f in flat]
+        return [fit_frame_gaussian(f) for f in flat]
 
     def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
@@ -447,9 +451,11 @@ class MSVDD(Detector):
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
         if model.config.rec_score in FRAME_DENSITY_SCORES and model.config.use_reconstruction:
-            density: type[FrameGaussian] | type[FrameMixture] = (
-                FrameMixture if model.config.rec_score == "mixture" else FrameGaussian
-            )
+            density: type[FrameGaussian] | type[FrameMixture] | type[ContextMixture] = {
+                "mahalanobis": FrameGaussian,
+                "mixture": FrameMixture,
+                "context": ContextMixture,
+            }[model.config.rec_score]
             model.rec_density_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")

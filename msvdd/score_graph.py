@@ -15,7 +15,8 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
    Sigma^-1 = L^-T L^-1), in float64 like `msvdd.mcd.mahalanobis`; the Euclidean ablation stores mu = c and
    L^-1 = I.
 5. The reconstruction term (mean or peak Huber error per modality, or the largest distance of a residual
-   frame under the model's `msvdd.residual.FrameGaussian` or `FrameMixture`, over `rec_scale_`, summed) and
+   frame under the model's `msvdd.residual.FrameGaussian` or `FrameMixture`, or given its neighbours under its
+   `msvdd.context.ContextMixture`, over `rec_scale_`, summed) and
    delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
@@ -50,6 +51,7 @@ import torch.nn.functional as F
 from scipy import signal
 from torch import nn
 
+from msvdd.context import ContextMixture, context_nll
 from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
@@ -393,13 +395,33 @@ class ScoreGraph(nn.Module):
         self.frame_whiten = nn.ParameterDict()
         self.frame_log_weights = nn.ParameterDict()
         self.frame_precision_cholesky = nn.ParameterDict()
+        # `rec_score="context"`: the joint mixture in the frame_* fields, the context's mixture and projection
+        # in these, with each modality's floor and number of neighbours.
+        self.context_log_weights = nn.ParameterDict()
+        self.context_means = nn.ParameterDict()
+        self.context_precision_cholesky = nn.ParameterDict()
+        self.context_center = nn.ParameterDict()
+        self.context_basis = nn.ParameterDict()
+        self.context_floor: dict[str, float] = {}
+        self.context_neighbours: dict[str, int] = {}
         if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
             if model.rec_density_ is None:
                 raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
             decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
             names = [name for name, decoder in decoders if decoder is not None]
             for name, g in zip(names, model.rec_density_, strict=True):
-                if isinstance(g, FrameMixture):
+                if isinstance(g, ContextMixture):
+                    self.frame_log_weights[name] = _constant(g.joint.log_weights)
+                    self.frame_mean[name] = _constant(g.joint.means)
+                    self.frame_precision_cholesky[name] = _constant(g.joint.precision_cholesky)
+                    self.context_log_weights[name] = _constant(g.context.log_weights)
+                    self.context_means[name] = _constant(g.context.means)
+                    self.context_precision_cholesky[name] = _constant(g.context.precision_cholesky)
+                    self.context_center[name] = _constant(g.center)
+                    self.context_basis[name] = _constant(g.basis)
+                    self.context_floor[name] = g.floor
+                    self.context_neighbours[name] = g.neighbours
+                elif isinstance(g, FrameMixture):
                     self.frame_log_weights[name] = _constant(g.log_weights)
                     self.frame_mean[name] = _constant(g.means)
                     self.frame_precision_cholesky[name] = _constant(g.precision_cholesky)
@@ -428,7 +450,22 @@ class ScoreGraph(nn.Module):
 
     def frame_distance(self, name: str, frames: torch.Tensor) -> torch.Tensor:
         """(N,) largest distance of the residual frames (N, T, p) of modality `name`: Mahalanobis under the
-        frame Gaussian, or the mixture's `msvdd.residual.mixture_peak_distance`."""
+        frame Gaussian, the mixture's `msvdd.residual.mixture_peak_distance`, or sqrt(2 (nll - floor)) of the
+        frames given their neighbours (`msvdd.context.ContextMixture.peak_distance`)."""
+        if self.rec_score == "context":
+            nll = context_nll(
+                frames,
+                self.context_neighbours[name],
+                self.context_center[name],
+                self.context_basis[name],
+                (self.frame_log_weights[name], self.frame_mean[name], self.frame_precision_cholesky[name]),
+                (
+                    self.context_log_weights[name],
+                    self.context_means[name],
+                    self.context_precision_cholesky[name],
+                ),
+            )
+            return torch.sqrt(2.0 * (nll.amax(dim=1) - self.context_floor[name]).clamp_min(0.0))
         if self.rec_score == "mixture":
             return mixture_peak_distance(
                 frames,

@@ -159,6 +159,7 @@ def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> Non
         {"rec_score": "mahalanobis"},
         {"use_audio": False, "rec_score": "mahalanobis"},
         {"audio_frontend": "logmel", "imu_input": "all", "rec_score": "mixture", "rec_components": 3},
+        {"audio_frontend": "logmel", "imu_input": "all", "rec_score": "context", "rec_components": 2},
     ],
     ids=lambda o: "-".join(f"{k}={v}" for k, v in o.items()),
 )

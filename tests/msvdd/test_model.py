@@ -15,6 +15,7 @@ from sklearn.metrics import roc_auc_score
 from sklearn.mixture import GaussianMixture
 
 from msvdd.config import MSVDDConfig
+from msvdd.context import ContextMixture, fit_context_mixture
 from msvdd.contract import Detector, ModelFormatError, WindowError, Windows
 from msvdd.model import FORMAT_VERSION, MSVDD, NotFittedError
 from msvdd.residual import FrameGaussian, FrameMixture
@@ -309,6 +310,32 @@ def test_mixture_reconstruction_term_by_hand(
     nll = (-peer.score_samples(_imu_residual_frames(model, test).reshape(-1, 56))).reshape(4, 50).max(axis=1)
     _, parts = model._distance_and_parts(model._tensors(test))
     np.testing.assert_allclose(parts[:, 1], np.sqrt(2 * (nll + max(log_peaks))), rtol=1e-6)
+    path = tmp_path / "m.pt"
+    model.save(path)
+    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
+
+
+def test_context_reconstruction_term_by_hand(
+    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    cfg = MSVDDConfig.smoke(
+        epochs=1,
+        audio_frontend="logmel",
+        imu_input="all",
+        rec_score="context",
+        rec_components=2,
+        val_fraction=0.0,
+    )
+    model = MSVDD(cfg).fit(toy_train)
+    assert model.rec_density_ is not None and all(isinstance(m, ContextMixture) for m in model.rec_density_)
+    # The IMU's term by hand: the conditional mixture (`msvdd.context`, tested against the Gaussian
+    # conditional there) of the training windows' residual frames, fitted with the model's seed; each test
+    # window's largest conditional distance.
+    peer = fit_context_mixture(torch.from_numpy(_imu_residual_frames(model, toy_train)), 2, cfg.seed)
+    test = toy_test[0].subset(slice(0, 4))
+    _, parts = model._distance_and_parts(model._tensors(test))
+    want = peer.peak_distance(torch.from_numpy(_imu_residual_frames(model, test))).numpy()
+    np.testing.assert_allclose(parts[:, 1], want, rtol=1e-6)
     path = tmp_path / "m.pt"
     model.save(path)
     np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))

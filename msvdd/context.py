@@ -22,6 +22,7 @@ detector").
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -197,5 +198,4 @@ def fit_context_mixture(
     joint = fit_frame_mixture(torch.cat([x, c], dim=1), components, seed, max_iter=CONTEXT_MAX_ITER)
     context = fit_frame_mixture(c, components, seed, max_iter=CONTEXT_MAX_ITER)
     model = ContextMixture(neighbours, center, basis, joint, context, floor=0.0)
-    floor = float(model.nll(frames).min())
-    return ContextMixture(neighbours, center, basis, joint, context, floor=floor)
+    return dataclasses.replace(model, floor=float(model.nll(frames).min()))

@@ -130,10 +130,22 @@ class MixtureFrameReference(FrameReference):
             raise ValueError(f"components = {components} is invalid; allowed: 1 or more")
         self.seed = seed
         self.components = components
-        self.mixtures: list[FrameMixture] = []
+        self.mixtures: list[FrameMixture | ContextMixture] = []
+
+    def _fit_density(self, frames: torch.Tensor) -> FrameMixture | ContextMixture:
+        """One modality's density of its training windows' frames (N, T, p)."""
+        return fit_frame_mixture(frames.reshape(-1, frames.shape[2]), self.components, self.seed)
+
+    @staticmethod
+    def _load_density(state: dict[str, torch.Tensor]) -> FrameMixture | ContextMixture:
+        """Inverse of a density's `state`."""
+        return FrameMixture.from_state(state, torch.device("cpu"))
+
+    _density_fields: tuple[str, ...] = ("log_weights", "means", "precision_cholesky")
+    """The keys of a density's `state`."""
 
     def _peaks(self, frames: list[torch.Tensor]) -> np.ndarray:
-        """(N, 2) each modality's largest frame distance under its mixture."""
+        """(N, 2) each modality's largest frame distance under its density."""
         return np.stack(
             [m.peak_distance(f).numpy() for m, f in zip(self.mixtures, frames, strict=True)], axis=1
         )
@@ -143,18 +155,17 @@ class MixtureFrameReference(FrameReference):
         frames = self._modality_frames(train)
         self.mixtures = []
         for f in frames:
-            flat = f.reshape(-1, f.shape[2])
-            if len(flat) < self.components:
+            if f.shape[0] * f.shape[1] < self.components:
                 raise WindowError(
-                    f"mixture-frames needs at least {self.components} training frames per modality; "
-                    f"got {len(flat)}"
+                    f"{self.kind} needs at least {self.components} training frames per modality; "
+                    f"got {f.shape[0] * f.shape[1]}"
                 )
-            self.mixtures.append(fit_frame_mixture(flat, self.components, self.seed))
+            self.mixtures.append(self._fit_density(f))
         self.scale = self._peaks(frames).mean(axis=0)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         if self.normalizer is None:
-            raise RuntimeError("mixture-frames has no input statistics")
+            raise RuntimeError(f"{self.kind} has no input statistics")
         arrays = {**self.normalizer.arrays(), "scale": self.scale}
         for name, m in zip(MODALITY_NAMES, self.mixtures, strict=True):
             for field, value in m.state().items():
@@ -167,11 +178,8 @@ class MixtureFrameReference(FrameReference):
         detector.normalizer = InputNormalizer.from_arrays(arrays, "logmel", "all")
         detector.scale = np.asarray(arrays["scale"], dtype=np.float64)
         for name in MODALITY_NAMES:
-            state = {
-                field: torch.from_numpy(np.asarray(arrays[f"{name}_{field}"], dtype=np.float64))
-                for field in ("log_weights", "means", "precision_cholesky")
-            }
-            detector.mixtures.append(FrameMixture.from_state(state, torch.device("cpu")))
+            state = {k: torch.from_numpy(np.asarray(arrays[f"{name}_{k}"])) for k in cls._density_fields}
+            detector.mixtures.append(cls._load_density(state))
         return detector
 
 
@@ -181,48 +189,14 @@ class ContextFrameReference(MixtureFrameReference):
     summed."""
 
     kind = "context-frames"
+    _density_fields = CONTEXT_STATE_FIELDS
 
-    def __init__(self, seed: int = 0, components: int = MIXTURE_COMPONENTS) -> None:
-        super().__init__(seed, components)
-        self.contexts: list[ContextMixture] = []
+    def _fit_density(self, frames: torch.Tensor) -> FrameMixture | ContextMixture:
+        return fit_context_mixture(frames, self.components, self.seed)
 
-    def _peaks(self, frames: list[torch.Tensor]) -> np.ndarray:
-        """(N, 2) each modality's largest frame distance given the frame's neighbours."""
-        return np.stack(
-            [m.peak_distance(f).numpy() for m, f in zip(self.contexts, frames, strict=True)], axis=1
-        )
-
-    def _fit(self, train: Windows, val: Windows | None) -> None:
-        self.normalizer = InputNormalizer.fit(train, "logmel", "all")
-        frames = self._modality_frames(train)
-        self.contexts = []
-        for f in frames:
-            if f.shape[0] * f.shape[1] < self.components:
-                raise WindowError(
-                    f"context-frames needs at least {self.components} training frames per modality; "
-                    f"got {f.shape[0] * f.shape[1]}"
-                )
-            self.contexts.append(fit_context_mixture(f, self.components, self.seed))
-        self.scale = self._peaks(frames).mean(axis=0)
-
-    def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        if self.normalizer is None:
-            raise RuntimeError("context-frames has no input statistics")
-        arrays = {**self.normalizer.arrays(), "scale": self.scale}
-        for name, m in zip(MODALITY_NAMES, self.contexts, strict=True):
-            for field, value in m.state().items():
-                arrays[f"{name}_{field}"] = value.numpy()
-        return {"seed": self.seed, "components": self.components}, arrays
-
-    @classmethod
-    def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
-        detector = cls(int(header["seed"]), int(header["components"]))
-        detector.normalizer = InputNormalizer.from_arrays(arrays, "logmel", "all")
-        detector.scale = np.asarray(arrays["scale"], dtype=np.float64)
-        for name in MODALITY_NAMES:
-            state = {k: torch.from_numpy(np.asarray(arrays[f"{name}_{k}"])) for k in CONTEXT_STATE_FIELDS}
-            detector.contexts.append(ContextMixture.from_state(state, torch.device("cpu")))
-        return detector
+    @staticmethod
+    def _load_density(state: dict[str, torch.Tensor]) -> FrameMixture | ContextMixture:
+        return ContextMixture.from_state(state, torch.device("cpu"))
 
 
 def register_methods() -> None:

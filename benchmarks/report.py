@@ -45,7 +45,7 @@ COMPARISON: tuple[tuple[str, str], ...] = (
     ("vae-svdd", "VAE-SVDD"),
     ("dsvdd", "DSVDD"),
     ("msvdd-paper", "M-SVDD (the paper's configuration)"),
-    ("msvdd-context", "M-SVDD, residual frames given their neighbours"),
+    ("msvdd-mixture", "M-SVDD, residual frames on their own (the previous `msvdd`)"),
     ("msvdd", "**M-SVDD (ours)**"),
 )
 """Table I rows: registry name (shallow ones get -early/-late) and the paper's label (DCASE AE is ours)."""

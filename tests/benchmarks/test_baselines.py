@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -209,6 +210,13 @@ def test_registry_lists_every_family_of_the_paper() -> None:
         "context-frames",
     }
     assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
+
+
+def test_msvdd_scores_residuals_in_context_and_msvdd_mixture_differs_only_there() -> None:
+    current = methods.make("msvdd", seed=0, scale="full").config  # type: ignore[attr-defined]
+    previous = methods.make("msvdd-mixture", seed=0, scale="full").config  # type: ignore[attr-defined]
+    assert current.rec_score == "context" and previous.rec_score == "mixture"
+    assert dataclasses.replace(previous, rec_score="context") == current
 
 
 def test_msvdd_trains_without_a_validation_set_too_small_for_its_mcd() -> None:

@@ -7,7 +7,7 @@ smoothing, network, Mahalanobis, reconstruction) on 1 thread for a batch of one 
 
 The ONNX figures put the exported scoring path (`msvdd.export`, `msvdd.onnx_backend.OnnxScorer`, ONNX Runtime
 on 1 thread) against torch eager measured in the same run on the same fitted model: for the paper network
-(waveform, z-velocity) and for the registry's `msvdd` (log-mel, all IMU axes, peak reconstruction error):
+(waveform, z-velocity) and for the registry's `msvdd` (log-mel, all IMU axes, `DEV_CHOICE`):
 latency of one window (wall clock, median), and the real-time factor of `StreamingScorer` (raw 44.1 kHz audio
 and 200 Hz IMU pushed in 100 ms chunks, a window every 0.5 s, decimation included; recording seconds per CPU
 second of the one thread) with each backend.

@@ -80,13 +80,30 @@ def record_training(folder: Path, key: str, train_seconds: float) -> None:
     write_text_atomic(folder / TRAINING_FILE, text)
 
 
-def finished_training(folder: Path, key: str) -> float | None:
-    """The fit time of the finished model in `folder` if it was trained with `key`; None otherwise."""
+def _training_record(folder: Path) -> dict[str, object] | None:
+    """The `training.json` of the model in `folder`, or None if it has none or it cannot be read."""
     try:
         record = json.loads((folder / TRAINING_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(record, dict) or record.get("key") != key:
-        return None
+    return record if isinstance(record, dict) else None
+
+
+def _seconds(record: dict[str, object]) -> float | None:
     seconds = record.get("train_seconds")
     return float(seconds) if isinstance(seconds, int | float) else None
+
+
+def finished_training(folder: Path, key: str) -> float | None:
+    """The fit time of the finished model in `folder` if it was trained with `key`; None otherwise."""
+    record = _training_record(folder)
+    if record is None or record.get("key") != key:
+        return None
+    return _seconds(record)
+
+
+def recorded_train_seconds(folder: Path) -> float | None:
+    """The fit time `training.json` records for the model in `folder`, whatever its key; None without one
+    (a model trained before `msvdd-bench train` wrote it)."""
+    record = _training_record(folder)
+    return None if record is None else _seconds(record)

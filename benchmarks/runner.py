@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import math
 import os
 import platform
 import shutil
@@ -212,7 +213,7 @@ def _train_and_report(
         command=command,
         machine=machine_description(),
         date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
-        train_seconds=_mean_train_seconds(models),
+        train_seconds=mean_train_seconds(models),
         dev=dev_text,
         dataset_fingerprint=dataset.fingerprint,
     )
@@ -256,11 +257,13 @@ def _train_models(
     return models
 
 
-def _mean_train_seconds(models: list[TrainedModel]) -> dict[str, float]:
-    """Mean training time of each method over its seeds."""
+def mean_train_seconds(models: list[TrainedModel]) -> dict[str, float]:
+    """Mean training time of each method over its seeds whose time is known (not NaN); a method with
+    none is left out."""
     fit_time: dict[str, list[float]] = {}
     for m in models:
-        fit_time.setdefault(m.method, []).append(m.train_seconds)
+        if math.isfinite(m.train_seconds):
+            fit_time.setdefault(m.method, []).append(m.train_seconds)
     return {k: float(np.mean(v)) for k, v in fit_time.items()}
 
 

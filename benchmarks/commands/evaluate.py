@@ -34,7 +34,8 @@ def _run(args: argparse.Namespace) -> int:
     from benchmarks.dataset import check_dev, open_dataset
     from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows
     from benchmarks.report import RunInfo, write_report
-    from benchmarks.runner import machine_description
+    from benchmarks.resume import recorded_train_seconds
+    from benchmarks.runner import machine_description, mean_train_seconds
 
     progress = not args.no_progress
     if args.out.exists():
@@ -45,7 +46,9 @@ def _run(args: argparse.Namespace) -> int:
     for folder in tqdm(args.model, desc="loading models", unit="model", disable=not progress):
         name, detector = methods.load_detector(folder)
         run_index = sum(1 for m in models if m.method == name)  # the "seed" column counts runs of a method
-        models.append(TrainedModel(name, run_index, detector, Path(folder), float("nan")))
+        seconds = recorded_train_seconds(Path(folder))  # written by `train` and `run`; NaN if absent
+        fit = float("nan") if seconds is None else seconds
+        models.append(TrainedModel(name, run_index, detector, Path(folder), fit))
     test = test_windows(dataset, progress=progress)
     scores, per_method, rows = score_and_measure(dataset, models, test=test, progress=progress)
     info = RunInfo(
@@ -55,7 +58,7 @@ def _run(args: argparse.Namespace) -> int:
         command="msvdd-bench " + " ".join(sys.argv[1:]),
         machine=machine_description(),
         date=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d"),
-        train_seconds={},
+        train_seconds=mean_train_seconds(models),
         dev=dev,
         dataset_fingerprint=dataset.fingerprint,
     )

@@ -32,9 +32,12 @@ def _run(args: argparse.Namespace) -> int:
     from benchmarks import methods
     from benchmarks.dataset import open_dataset
     from benchmarks.pipeline import train_method
+    from benchmarks.resume import code_digest, record_training, training_key
 
     progress = not args.no_progress
     methods.spec(args.method)
+    seed = check_seed(args.train_seed, "--train-seed")
+    code = code_digest(args.method)  # taken before training, as `run` does: the code this process loaded
     if args.out.exists() and any(args.out.iterdir()):
         raise OutputExistsError(f"model folder exists and is not empty: {args.out}")
     dataset = open_dataset(args.data, progress=progress)
@@ -42,12 +45,14 @@ def _run(args: argparse.Namespace) -> int:
     model = train_method(
         dataset,
         args.method,
-        check_seed(args.train_seed, "--train-seed"),
+        seed,
         scale,
         args.out,
         device=args.device,
         progress=progress,
     )
+    key = training_key(args.method, seed, scale, args.device, dataset.fingerprint, code)
+    record_training(model.path, key, model.train_seconds)
     print(
         f"trained {args.method} (seed {args.train_seed}, scale {scale}) in {model.train_seconds:.1f} s; "
         f"threshold {model.detector.threshold_:.6g}; saved to {model.path}"

@@ -72,6 +72,19 @@ def test_train_then_evaluate(tiny_dataset: Path, tiny_model: Path, tmp_path: Pat
     auc = roc_auc_score([int(r["label"]) for r in rows], [float(r["score"]) for r in rows])
     assert auc == pytest.approx(results["methods"]["msvdd"]["auc"], abs=1e-12)
     assert "F1 oracle" in (run / "results.md").read_text()
+    # `train` records its fit time under the key `run --resume` would look for, and `evaluate` reports it;
+    # a model without the record (the fixture, trained by the library) has no fit time, not a made-up one.
+    from benchmarks.dataset import open_dataset
+    from benchmarks.resume import code_digest, finished_training, training_key
+
+    dataset = open_dataset(tiny_dataset, verify=False)
+    key = training_key("iforest-early", 0, dataset.preset.method_scale, "auto", dataset.fingerprint,
+                       code_digest("iforest-early"))  # fmt: skip
+    seconds = finished_training(model2, key)
+    assert seconds is not None and seconds > 0.0
+    assert results["methods"]["iforest-early"]["train_seconds"] == pytest.approx(seconds)
+    assert results["methods"]["msvdd"]["train_seconds"] is None
+    assert f"| iforest-early | {seconds:.1f} |" in (run / "results.md").read_text()
 
 
 def test_run_end_to_end(tiny_dataset: Path, tmp_path: Path) -> None:

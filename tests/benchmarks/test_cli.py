@@ -78,7 +78,7 @@ def test_train_then_evaluate(tiny_dataset: Path, tiny_model: Path, tmp_path: Pat
     from benchmarks.resume import code_digest, finished_training, training_key
 
     dataset = open_dataset(tiny_dataset, verify=False)
-    key = training_key("iforest-early", 0, dataset.preset.method_scale, "auto", dataset.fingerprint,
+    key = training_key("iforest-early", 0, dataset.preset.method_scale, "cpu", dataset.fingerprint,
                        code_digest("iforest-early"))  # fmt: skip
     seconds = finished_training(model2, key)
     assert seconds is not None and seconds > 0.0

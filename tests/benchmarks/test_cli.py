@@ -15,7 +15,9 @@ import pytest
 from sklearn.metrics import roc_auc_score
 
 from benchmarks.cli import _discover, build_parser, main
+from benchmarks.dataset import open_dataset
 from benchmarks.errors import FOREIGN_USER_ERRORS, UserError, is_user_error
+from benchmarks.resume import code_digest, finished_training, training_key
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -74,9 +76,6 @@ def test_train_then_evaluate(tiny_dataset: Path, tiny_model: Path, tmp_path: Pat
     assert "F1 oracle" in (run / "results.md").read_text()
     # `train` records its fit time under the key `run --resume` would look for, and `evaluate` reports it;
     # a model without the record (the fixture, trained by the library) has no fit time, not a made-up one.
-    from benchmarks.dataset import open_dataset
-    from benchmarks.resume import code_digest, finished_training, training_key
-
     dataset = open_dataset(tiny_dataset, verify=False)
     key = training_key("iforest-early", 0, dataset.preset.method_scale, "cpu", dataset.fingerprint,
                        code_digest("iforest-early"))  # fmt: skip

@@ -135,6 +135,7 @@ TABLE1_METHODS: tuple[str, ...] = (
     "gaussian-frames",
     "mixture-frames",
     "context-frames",
+    "context-net-frames",
     "audio-rms",
     "imu-kurtosis",
 )

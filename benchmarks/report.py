@@ -86,11 +86,14 @@ REFERENCE: tuple[tuple[str, str], ...] = (
     ("gaussian-frames", "Gaussian, log-mel and IMU frames (largest frame distance)"),
     ("mixture-frames", "Gaussian mixture, log-mel and IMU frames (largest frame distance)"),
     ("context-frames", "Gaussian mixtures, log-mel and IMU frames given their neighbours"),
+    ("context-net-frames", "the same, the log-mel frames' density learned (mixture density network)"),
 )
-"""The reference detectors (no learning): the audit's Ledoit-Wolf Gaussian on fixed window statistics, the
-frame-wise Gaussian of M-SVDD's input frames (`rec_score="mahalanobis"` without the network) and the
-frame-wise Gaussian mixture (`msvdd`'s reconstruction term, `rec_score="mixture"`, without the network;
-`benchmarks.methods.frames`), and the frame-wise mixtures given each frame's neighbours (`context-frames`)."""
+"""The reference detectors (densities of fixed features, no learned representation): the audit's
+Ledoit-Wolf Gaussian on fixed window statistics, the frame-wise Gaussian of M-SVDD's input frames
+(`rec_score="mahalanobis"` without the network), the frame-wise Gaussian mixture (`msvdd`'s reconstruction
+term, `rec_score="mixture"`, without the network; `benchmarks.methods.frames`), the frame-wise mixtures given
+each frame's neighbours (`context-frames`), and the same with the log-mel frames' conditional density learned
+by a small network (`context-net-frames`)."""
 
 TOO_EASY_AUC = 0.9
 """A naive baseline at or above this AUC means the benchmark is too easy, and the report says so."""

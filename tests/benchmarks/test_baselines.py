@@ -208,6 +208,7 @@ def test_registry_lists_every_family_of_the_paper() -> None:
         "gaussian-frames",
         "mixture-frames",
         "context-frames",
+        "context-net-frames",
     }
     assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
 

@@ -1,5 +1,6 @@
-"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network), `mixture-frames` and
-`context-frames` against scikit-learn, scipy and `msvdd.context`."""
+"""`gaussian-frames` (msvdd's frame-wise Mahalanobis term without the network), `mixture-frames`,
+`context-frames` and `context-net-frames` against scikit-learn, scipy, `msvdd.context` and
+`msvdd.context_net`."""
 
 from __future__ import annotations
 
@@ -19,9 +20,11 @@ from benchmarks.methods.frames import (
     MIXTURE_COMPONENTS,
     ContextFrameReference,
     FrameReference,
+    LearnedContextFrameReference,
     MixtureFrameReference,
 )
 from msvdd.context import CONTEXT_DIM, CONTEXT_NEIGHBOURS, fit_context_mixture
+from msvdd.context_net import fit_context_net
 from msvdd.contract import WindowError
 from msvdd.frontend import InputNormalizer
 from msvdd.residual import MIXTURE_REG
@@ -144,3 +147,36 @@ def test_context_scores_are_conditional_peak_distances_in_units_of_training_mean
     np.testing.assert_array_equal(ContextFrameReference.load(tmp_path / "m.npz").score(test), det.score(test))
     with pytest.raises(WindowError, match="at least 200 training frames per modality; got 134"):
         ContextFrameReference(seed=0, components=200).fit(toy_windows(2, 0, seed=6)[0])
+
+
+def test_context_net_scores_the_audio_by_its_network_and_the_imu_by_the_context_mixture(
+    tmp_path: Path,
+) -> None:
+    train, _ = toy_windows(40, 0, seed=3)
+    val, _ = toy_windows(10, 0, seed=7)
+    test, labels = toy_windows(3, 3, seed=4)
+    det = methods.make("context-net-frames", seed=5, scale="smoke").fit(train, val)
+    assert isinstance(det, LearnedContextFrameReference)
+    # By hand: the log-mel frames' `ContextNet` (the validation windows' frames choosing its epoch; tested in
+    # tests/msvdd/test_context_net.py), the IMU frames' context mixture, each window's largest distance over
+    # its training mean, summed.
+    norm = InputNormalizer.fit(train, "logmel", "all")
+    (a_tr, i_tr), (a_te, i_te) = _input_frames(norm, train), _input_frames(norm, test)
+    a_val = torch.from_numpy(_input_frames(norm, val)[0])
+    net = fit_context_net(torch.from_numpy(a_tr).float(), a_val.float(), seed=5)
+    imu = fit_context_mixture(torch.from_numpy(i_tr), MIXTURE_COMPONENTS, seed=5)
+    want = np.zeros(len(test))
+    for model, tr, te in ((net, a_tr, a_te), (imu, i_tr, i_te)):
+        want += (
+            model.peak_distance(torch.from_numpy(te)).numpy()
+            / model.peak_distance(torch.from_numpy(tr)).numpy().mean()
+        )
+    np.testing.assert_allclose(det.score(test), want, rtol=1e-5)
+    assert det.score(test)[labels == 1].min() > det.score(test)[labels == 0].max()  # the toy anomalies
+    det.save(tmp_path / "m.npz")
+    loaded = LearnedContextFrameReference.load(tmp_path / "m.npz")
+    np.testing.assert_array_equal(loaded.score(test), det.score(test))
+    again = methods.make("context-net-frames", seed=5, scale="smoke").fit(train, val)
+    np.testing.assert_array_equal(again.score(test), det.score(test))
+    with pytest.raises(WindowError, match="at least 200 training frames per modality; got 100"):
+        LearnedContextFrameReference(seed=0, components=200).fit(toy_windows(2, 0, seed=6)[0])

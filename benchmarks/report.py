@@ -88,7 +88,7 @@ REFERENCE: tuple[tuple[str, str], ...] = (
     ("context-frames", "Gaussian mixtures, log-mel and IMU frames given their neighbours"),
     ("context-net-frames", "the same, the log-mel frames' density learned (mixture density network)"),
 )
-"""The reference detectors (densities of fixed features, no learned representation): the audit's
+"""The reference detectors (densities of the inputs, no M-SVDD network): the audit's
 Ledoit-Wolf Gaussian on fixed window statistics, the frame-wise Gaussian of M-SVDD's input frames
 (`rec_score="mahalanobis"` without the network), the frame-wise Gaussian mixture (`msvdd`'s reconstruction
 term, `rec_score="mixture"`, without the network; `benchmarks.methods.frames`), the frame-wise mixtures given
@@ -468,8 +468,9 @@ def markdown(
         "",
         *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS, intervals),
         "",
-        "## Reference detectors (no learning: Gaussians on fixed window statistics, the audit's; a Gaussian"
-        " and a Gaussian mixture on input frames)",
+        "## Reference detectors (densities of the inputs, no M-SVDD network: Gaussians on fixed window"
+        " statistics, the audit's; Gaussians and mixtures on the input frames, alone or given their"
+        " neighbours; the last row learns the log-mel frames' density given their neighbours)",
         "",
         *_table(REFERENCE, per_method, _MAIN_COLUMNS, intervals),
         "",

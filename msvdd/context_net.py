@@ -15,9 +15,9 @@ the lowest mean loss over (up to `VAL_FRAMES` of) the validation frames is kept,
 validation frames. Like `ContextMixture` the floor is the smallest -log p over every training frame and a
 window's distance is sqrt(2 (nll - floor)) of its least likely frame.
 
-Every constant was set before the network was first run, none tuned. Where it is used (the audio term of
-`msvdd`, on the normalised log-mel input frames) was chosen on the dev dataset (seed 1) of the `paper`
-preset: README, "The detector".
+Every constant was set before the network was first run, none tuned. Where it is used (the audio term of the
+reference method `context-net-frames`, on `msvdd`'s normalised log-mel input frames) was chosen on the dev
+dataset (seed 1) of the `paper` preset: README, "The detector".
 """
 
 from __future__ import annotations

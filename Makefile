@@ -31,15 +31,18 @@ demo: $(STAMP)
 	$(BENCH) demo --out runs/demo --replace
 
 # The paper preset as two datasets from different seeds, both audited: dev (where every choice a method
-# makes is made) and eval (only reported); Table I is trained and scored on eval. Hours on 2 cores: stopped,
-# `make bench` again resumes (--resume reuses every model the stopped run finished; --reuse prints an audit
-# already made of the same dataset with the same code instead of running it again).
+# makes is made) and eval (only reported); Table I is trained and scored on eval, then the fusion ablation of
+# `context-net-frames` (`terms`: its audio and IMU terms alone) is written to runs/paper-terms/. Hours on 2
+# cores: stopped, `make bench` again resumes (--resume reuses every model the stopped run finished; --reuse
+# prints an audit already made of the same dataset with the same code instead of running it again).
 bench: $(STAMP)
 	test -d runs/paper-dev || $(BENCH) generate --preset paper --seed 1 --out runs/paper-dev
 	test -d runs/paper-eval || $(BENCH) generate --preset paper --seed 2 --out runs/paper-eval
 	$(BENCH) audit runs/paper-dev --out runs/paper-dev-audit --reuse
 	$(BENCH) audit runs/paper-eval --out runs/paper-eval-audit --reuse
 	$(BENCH) run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper --resume
+	$(BENCH) terms runs/paper/models/context-net-frames-seed* --data runs/paper-eval --no-progress \
+		--md runs/paper-terms/context-net-frames.md --json runs/paper-terms/context-net-frames.json
 
 # The module, fusion and latent ablations on the eval dataset that `make bench` generated.
 ablations: $(STAMP)

@@ -428,7 +428,8 @@ def load_msvdd(folder: Path) -> tuple[str, MSVDD]:
         family = methods.spec(name).family
         raise UserError(
             f"{folder} holds method {name!r} (family {family!r}), not an M-SVDD model; diagnose reads "
-            f"the msvdd family only: {', '.join(methods.names('msvdd'))}"
+            f"the msvdd family only: {', '.join(methods.names('msvdd'))} (a frame-density reference's "
+            "modality terms: `msvdd-bench terms`)"
         )
     return name, detector
 

@@ -45,7 +45,7 @@ from benchmarks.methods.base import WindowDetector
 from msvdd.context import CONTEXT_DIM, CONTEXT_NEIGHBOURS, ContextMixture, fit_context_mixture
 from msvdd.context import STATE_FIELDS as CONTEXT_STATE_FIELDS
 from msvdd.context_net import ContextNet, fit_context_net
-from msvdd.contract import WindowError, Windows
+from msvdd.contract import NotFittedError, WindowError, Windows, check_windows
 from msvdd.frontend import InputNormalizer
 from msvdd.network import IMU_FRAME
 from msvdd.residual import (
@@ -103,8 +103,19 @@ class FrameReference(WindowDetector):
         self.gauss = [fit_frame_gaussian(f.reshape(-1, f.shape[2])) for f in frames]
         self.scale = self._peaks(frames).mean(axis=0)
 
+    def modality_scores(self, batch: Windows) -> np.ndarray:
+        """(N, 2) float64: each modality's term of the score, in `MODALITY_NAMES` order; a row's sum is the
+        window's `score` (the fusion ablation of these references costs no training: `msvdd-bench terms`)."""
+        if not self._fitted:
+            raise NotFittedError(f"{type(self).__name__} is not fitted; call fit(train) or load(path) first")
+        check_windows(batch, "batch")
+        return self._terms(batch)
+
+    def _terms(self, batch: Windows) -> np.ndarray:
+        return np.asarray(self._peaks(self._modality_frames(batch)) / self.scale, dtype=np.float64)
+
     def _score(self, batch: Windows) -> np.ndarray:
-        return (self._peaks(self._modality_frames(batch)) / self.scale).sum(axis=1)
+        return self._terms(batch).sum(axis=1)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         if self.normalizer is None:

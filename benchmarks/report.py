@@ -45,7 +45,8 @@ COMPARISON: tuple[tuple[str, str], ...] = (
     ("vae-svdd", "VAE-SVDD"),
     ("dsvdd", "DSVDD"),
     ("msvdd-paper", "M-SVDD (the paper's configuration)"),
-    ("msvdd-mixture", "M-SVDD, residual frames on their own (the previous `msvdd`)"),
+    ("msvdd-mixture", "M-SVDD, residual frames on their own (an earlier `msvdd`)"),
+    ("msvdd-context", "M-SVDD, residual frames given their neighbours (the previous `msvdd`)"),
     ("msvdd", "**M-SVDD (ours)**"),
 )
 """Table I rows: registry name (shallow ones get -early/-late) and the paper's label (DCASE AE is ours)."""

@@ -11,7 +11,7 @@ from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 from msvdd.residual import MIXTURE_COMPONENTS
 
-REC_SCORES = ("mean", "peak", "mahalanobis", "mixture", "context")
+REC_SCORES = ("mean", "peak", "mahalanobis", "mixture", "context", "fused")
 """Allowed `rec_score` values."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
@@ -52,10 +52,14 @@ class MSVDDConfig:
     modalities), "peak" (per modality its largest per-time-step error over its training mean, summed) or
     "mahalanobis" (per modality the largest Mahalanobis distance of a residual frame under a Gaussian of the
     training residuals, `msvdd.residual`, over its training mean, summed), "mixture" (the same with a
-    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`) or "context" (the same with
-    the mixture of each residual frame given its neighbouring residual frames, `msvdd.context`)."""
+    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`), "context" (the same with
+    the mixture of each residual frame given its neighbouring residual frames, `msvdd.context`) or "fused"
+    (per modality the largest distance of an input frame under a mixture density network of the training
+    input frames given its neighbours and, for the IMU of an audio-IMU model, the audio frames around it,
+    `msvdd.context_net`)."""
     rec_components: int = MIXTURE_COMPONENTS
-    """Components of each modality's residual frame mixtures (`rec_score="mixture"` or `"context"` only)."""
+    """Components of each modality's residual frame mixtures (`rec_score="mixture"` or `"context"` only; the
+    networks of `"fused"` have `msvdd.context_net.COMPONENTS`)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4

@@ -4,9 +4,11 @@ fit: z-score statistics from the training windows; train the network with
 alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
 and Sigma by MCD over the embeddings of the whole training split (with `rec_score="mahalanobis"` or
 `"mixture"` also the Gaussians or Gaussian mixtures of the training windows' residual frames,
-`msvdd.residual`), the training means of D and Rec, and the score delta = D + w (mean_D / mean_Rec) Rec, Rec
-the reconstruction term `rec_score` names; the threshold follows the rule of `msvdd.contract.Detector` (the
-`quantile` of the scores of held-out nominal windows). No test label is ever seen. With
+`msvdd.residual`; with `"fused"` the mixture density networks of the training windows' input frames,
+`msvdd.context_net`, their epochs chosen on the validation windows), the training means of D and Rec, and
+the score delta = D + w (mean_D / mean_Rec) Rec, Rec the reconstruction term `rec_score` names; the
+threshold follows the rule of `msvdd.contract.Detector` (the `quantile` of the scores of held-out nominal
+windows). No test label is ever seen. With
 `use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD around a fixed
 centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
 """
@@ -28,6 +30,7 @@ from torch import nn
 
 from msvdd.config import MSVDDConfig
 from msvdd.context import ContextMixture, fit_context_mixture
+from msvdd.context_net import ContextNet, fit_context_net
 from msvdd.contract import (
     Detector,
     ModelFormatError,
@@ -51,6 +54,7 @@ from msvdd.network import AUDIO_STRIDES, IMU_FRAME, FusionNet, NetOutput
 from msvdd.residual import (
     FrameGaussian,
     FrameMixture,
+    cut_frames,
     fit_frame_gaussian,
     fit_frame_mixture,
     residual_frames,
@@ -63,11 +67,12 @@ history; 3: the residual frame densities of `rec_score="mahalanobis"` and `"mixt
 versions 1 (the paper's waveform and z-velocity) and 2, refuses any other."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
-FRAME_DENSITY_SCORES = ("mahalanobis", "mixture", "context")
-"""`rec_score`s that fit a density of the training windows' residual frames after training."""
-FrameDensity = FrameGaussian | FrameMixture | ContextMixture
-"""A residual frame density: `FrameGaussian` ("mahalanobis"), `FrameMixture` ("mixture") or `ContextMixture`
-("context")."""
+FRAME_DENSITY_SCORES = ("mahalanobis", "mixture", "context", "fused")
+"""`rec_score`s that fit a density of the training windows' frames after training: of the residual frames, or
+(`"fused"`) of the input frames."""
+FrameDensity = FrameGaussian | FrameMixture | ContextMixture | ContextNet
+"""A frame density: `FrameGaussian` ("mahalanobis"), `FrameMixture` ("mixture"), `ContextMixture`
+("context") or `ContextNet` ("fused")."""
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 """Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
 
@@ -163,7 +168,7 @@ class MSVDD(Detector):
             val_loss_fn=self._val_loss,
             epoch_probe=self._epoch_figures,
         )
-        self._finalise(train_t)
+        self._finalise(train_t, val_t)
 
     def _check_sizes(self, n_train: int, n_val: int) -> None:
         cfg = self.config
@@ -237,8 +242,13 @@ class MSVDD(Detector):
 
         return batched_loss(fixed, self.config.batch_size, self.device)(module, tensors)
 
-    def _finalise(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
-        """mu, Sigma over the whole training split; the training means of D and Rec."""
+    def _finalise(
+        self,
+        train_t: tuple[torch.Tensor, torch.Tensor],
+        val_t: tuple[torch.Tensor, torch.Tensor] | None = None,
+    ) -> None:
+        """mu, Sigma over the whole training split; the frame densities (`"fused"`: their epochs chosen on
+        `val_t`); the training means of D and Rec."""
         cfg = self.config
         z = self._embed_tensors(train_t).to(torch.float64)
         if cfg.use_mahalanobis:
@@ -250,7 +260,9 @@ class MSVDD(Detector):
         else:
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
-        if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
+        if cfg.rec_score == "fused" and cfg.use_reconstruction:
+            self.rec_density_ = self._fit_input_densities(train_t, val_t)
+        elif cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
             self.rec_density_ = self._fit_residual_densities(train_t)
         d, parts = self._distance_and_parts(train_t)
         if cfg.rec_score != "mean" and parts.shape[1]:
@@ -297,11 +309,50 @@ class MSVDD(Detector):
         if self.config.rec_score == "peak":
             return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
         if self.rec_density_ is None or len(self.rec_density_) != len(pairs):
-            raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
+            raise NotFittedError("MSVDD is not fitted: its frame densities are missing")
+        if self.config.rec_score == "fused":
+            frames = [cut_frames(x, axis, frame) for x, _, axis, _, frame in pairs]
+            return [
+                g.peak_distance(f, _cross(g, frames)) if isinstance(g, ContextNet) else g.peak_distance(f)
+                for g, f in zip(self.rec_density_, frames, strict=True)
+            ]
         return [
             g.peak_distance(residual_frames(x, x_hat, axis, frame))
             for g, (x, x_hat, axis, _, frame) in zip(self.rec_density_, pairs, strict=True)
         ]
+
+    def input_frames(self, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+        """(N, T, p) frames of each used modality's normalised input, audio first, cut as the residual
+        frames of `rec_parts` are (a log-mel frame of both channels, or 180 waveform samples of both; 8 IMU
+        samples of every axis)."""
+        cfg = self.config
+        frames = []
+        if cfg.use_audio:
+            logmel = cfg.audio_frontend == "logmel"
+            frames.append(
+                cut_frames(audio, 2, 1) if logmel else cut_frames(audio, 1, AUDIO_SAMPLES_PER_TOKEN)
+            )
+        if cfg.use_imu:
+            frames.append(cut_frames(imu, 1, IMU_FRAME))
+        return frames
+
+    def _fit_input_densities(
+        self, train_t: tuple[torch.Tensor, torch.Tensor], val_t: tuple[torch.Tensor, torch.Tensor] | None
+    ) -> list[FrameDensity]:
+        """`rec_score="fused"`: a `ContextNet` of each used modality's input frames given its neighbours; the
+        IMU's also given the audio frames around it when both modalities are used (`msvdd.context_net`)."""
+        device = self.device
+        train = self.input_frames(train_t[0].to(device), train_t[1].to(device))
+        val = None if val_t is None else self.input_frames(val_t[0].to(device), val_t[1].to(device))
+        seed = self.config.seed
+        densities: list[FrameDensity] = []
+        for m, frames in enumerate(train):
+            v = None if val is None else val[m]
+            cross = None
+            if m == 1:  # the IMU of an audio-IMU model: its frames given the log-mel frames too
+                cross = (train[0], None if val is None else val[0])
+            densities.append(fit_context_net(frames, v, seed, cross=cross))
+        return densities
 
     def _fit_residual_densities(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> list[FrameDensity]:
         """One density of the residual frames of `tensors` per reconstructed modality (`FrameDensity`)."""
@@ -451,10 +502,11 @@ class MSVDD(Detector):
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
         if model.config.rec_score in FRAME_DENSITY_SCORES and model.config.use_reconstruction:
-            density: type[FrameGaussian] | type[FrameMixture] | type[ContextMixture] = {
+            density: type[FrameGaussian] | type[FrameMixture] | type[ContextMixture] | type[ContextNet] = {
                 "mahalanobis": FrameGaussian,
                 "mixture": FrameMixture,
                 "context": ContextMixture,
+                "fused": ContextNet,
             }[model.config.rec_score]
             model.rec_density_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
@@ -466,6 +518,12 @@ class MSVDD(Detector):
     def radius_(self) -> float:
         """The learned soft-boundary radius R."""
         return float(self.module.radius.detach())
+
+
+def _cross(density: ContextNet, frames: list[torch.Tensor]) -> torch.Tensor | None:
+    """The cross-modal frames a `ContextNet` of `rec_score="fused"` reads: the audio's (the first modality)
+    when it has a cross-modal context, else None."""
+    return frames[0] if density.cross_p > 0 else None
 
 
 def _mcd_possible(n: int, config: MSVDDConfig) -> bool:

@@ -16,8 +16,8 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
    L^-1 = I.
 5. The reconstruction term (mean or peak Huber error per modality, or the largest distance of a residual
    frame under the model's `msvdd.residual.FrameGaussian` or `FrameMixture`, or given its neighbours under its
-   `msvdd.context.ContextMixture`, over `rec_scale_`, summed) and
-   delta = D + w (mean_D / mean_Rec) Rec, in float64.
+   `msvdd.context.ContextMixture`, or of an input frame under its `msvdd.context_net.ContextNet`, over
+   `rec_scale_`, summed) and delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
 ONNX Runtime session at batch 1:
@@ -52,12 +52,13 @@ from scipy import signal
 from torch import nn
 
 from msvdd.context import ContextMixture, context_nll
+from msvdd.context_net import ContextNet
 from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
 from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, FRAME_DENSITY_SCORES, MSVDD, NotFittedError
 from msvdd.network import IMU_FRAME, AudioDecoder, AudioEncoder
-from msvdd.residual import FrameMixture, mixture_peak_distance, residual_frames
+from msvdd.residual import FrameMixture, cut_frames, mixture_peak_distance, residual_frames
 
 
 def _f32(x: np.ndarray) -> torch.Tensor:
@@ -404,13 +405,17 @@ class ScoreGraph(nn.Module):
         self.context_basis = nn.ParameterDict()
         self.context_floor: dict[str, float] = {}
         self.context_neighbours: dict[str, int] = {}
+        # `rec_score="fused"`: each modality's input-frame density network (`msvdd.context_net.ContextNet`).
+        self.frame_nets = nn.ModuleDict()
         if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
             if model.rec_density_ is None:
                 raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
             decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
             names = [name for name, decoder in decoders if decoder is not None]
             for name, g in zip(names, model.rec_density_, strict=True):
-                if isinstance(g, ContextMixture):
+                if isinstance(g, ContextNet):
+                    self.frame_nets[name] = copy.deepcopy(g).cpu().eval()
+                elif isinstance(g, ContextMixture):
                     self.frame_log_weights[name] = _constant(g.joint.log_weights)
                     self.frame_mean[name] = _constant(g.joint.means)
                     self.frame_precision_cholesky[name] = _constant(g.joint.precision_cholesky)
@@ -500,6 +505,29 @@ class ScoreGraph(nn.Module):
             return err.mean(dim=tuple(range(1, err.dim())))
         return (err.mean(dim=2) if err.dim() == 3 else err).amax(dim=1)
 
+    def input_term(self, a: torch.Tensor | None, i: torch.Tensor | None) -> torch.Tensor:
+        """(N,) `rec_score="fused"`'s term: each used modality's largest input-frame distance under its
+        density network (the IMU's given the audio frames too when it reads them), over its training mean,
+        summed (as `MSVDD.rec_parts`)."""
+        frames: dict[str, torch.Tensor] = {}
+        if a is not None:
+            frames["audio"] = (
+                cut_frames(a, 2, 1)
+                if self.logmel_input
+                else cut_frames(a.squeeze(2).transpose(1, 2), 1, AUDIO_SAMPLES_PER_TOKEN)
+            )
+        if i is not None:
+            frames["imu"] = cut_frames(i, 1, IMU_FRAME)
+        parts = []
+        for name, x in frames.items():
+            net = self.frame_nets[name]
+            if not isinstance(net, ContextNet):
+                raise TypeError(f"frame_nets[{name!r}] is not a ContextNet")
+            cross = frames["audio"] if net.cross_p > 0 else None
+            nll = net.window_nll(x, cross).to(torch.float64).amax(dim=1)
+            parts.append(torch.sqrt(2.0 * (nll - net.floor).clamp_min(0.0)))
+        return (torch.stack(parts, dim=1) / self.rec_scale[: len(parts)]).sum(dim=1)
+
     def forward(
         self, audio: torch.Tensor, imu: torch.Tensor, imu6: torch.Tensor | None = None
     ) -> torch.Tensor:
@@ -516,6 +544,8 @@ class ScoreGraph(nn.Module):
         score = torch.sqrt((y * y).sum(dim=1))
         if not self.use_reconstruction:
             return score
+        if self.rec_score == "fused":
+            return score + self.rec_weight * self.input_term(a, i)
         parts = []
         if self.audio_decoder is not None and a is not None and a_tokens is not None:
             parts.append(self.audio_error(a, self.audio_decoder(a_tokens)))

@@ -213,11 +213,12 @@ def test_registry_lists_every_family_of_the_paper() -> None:
     assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
 
 
-def test_msvdd_scores_residuals_in_context_and_msvdd_mixture_differs_only_there() -> None:
+def test_msvdd_scores_fused_input_frames_and_the_previous_msvdds_differ_only_there() -> None:
     current = methods.make("msvdd", seed=0, scale="full").config  # type: ignore[attr-defined]
-    previous = methods.make("msvdd-mixture", seed=0, scale="full").config  # type: ignore[attr-defined]
-    assert current.rec_score == "context" and previous.rec_score == "mixture"
-    assert dataclasses.replace(previous, rec_score="context") == current
+    for name, rec_score in (("msvdd-context", "context"), ("msvdd-mixture", "mixture")):
+        previous = methods.make(name, seed=0, scale="full").config  # type: ignore[attr-defined]
+        assert current.rec_score == "fused" and previous.rec_score == rec_score
+        assert dataclasses.replace(previous, rec_score="fused") == current
 
 
 def test_msvdd_trains_without_a_validation_set_too_small_for_its_mcd() -> None:

@@ -16,6 +16,7 @@ from sklearn.mixture import GaussianMixture
 
 from msvdd.config import MSVDDConfig
 from msvdd.context import ContextMixture, fit_context_mixture
+from msvdd.context_net import ContextNet, fit_context_net
 from msvdd.contract import Detector, ModelFormatError, WindowError, Windows
 from msvdd.model import FORMAT_VERSION, MSVDD, NotFittedError
 from msvdd.residual import FrameGaussian, FrameMixture
@@ -336,6 +337,28 @@ def test_context_reconstruction_term_by_hand(
     _, parts = model._distance_and_parts(model._tensors(test))
     want = peer.peak_distance(torch.from_numpy(_imu_residual_frames(model, test))).numpy()
     np.testing.assert_allclose(parts[:, 1], want, rtol=1e-6)
+    path = tmp_path / "m.pt"
+    model.save(path)
+    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
+
+
+def test_fused_term_by_hand(toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path) -> None:
+    cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", rec_score="fused")
+    model = MSVDD(cfg).fit(toy_train, toy_train.subset(slice(0, 16)))
+    assert model.rec_density_ is not None and all(isinstance(m, ContextNet) for m in model.rec_density_)
+    audio_net, imu_net = model.rec_density_
+    # The log-mel frames' density reads their neighbours only, the IMU frames' also the log-mel frames.
+    assert (audio_net.p, audio_net.cross_p) == (64, 0) and (imu_net.p, imu_net.cross_p) == (56, 64)
+    # Each term by hand: the networks fitted on the training windows' input frames (no residual: the
+    # decoders do not enter), with the model's seed and the validation windows' frames choosing the epoch.
+    train_frames = model.input_frames(*model._tensors(toy_train))
+    val_frames = model.input_frames(*model._tensors(toy_train.subset(slice(0, 16))))
+    peer = fit_context_net(train_frames[1], val_frames[1], cfg.seed, cross=(train_frames[0], val_frames[0]))
+    test = toy_test[0].subset(slice(0, 4))
+    frames = model.input_frames(*model._tensors(test))
+    _, parts = model._distance_and_parts(model._tensors(test))
+    np.testing.assert_allclose(parts[:, 1], peer.peak_distance(frames[1], frames[0]).numpy(), rtol=1e-6)
+    np.testing.assert_allclose(parts[:, 0], audio_net.peak_distance(frames[0]).numpy(), rtol=1e-6)
     path = tmp_path / "m.pt"
     model.save(path)
     np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from msvdd.context_net import ContextNet, fit_context_net
+from msvdd.context_net import ContextNet, aligned_context, fit_context_net
 
 A, SIGMA = 0.9, 1.0
 """AR(1) coefficient and innovation scale of the test process x_t = A x_{t-1} + SIGMA e_t."""
@@ -90,3 +90,64 @@ def test_without_validation_frames_the_last_epoch_is_kept_and_bad_input_is_refus
         fit_context_net(train[:1, :1], None, seed=0)
     with pytest.raises(KeyError):
         ContextNet.from_state({"p": torch.tensor(1)}, torch.device("cpu"))
+
+
+NOISE = 0.1
+"""Scale of the noise between a frame and the other modality's frame under it in the cross-modal tests."""
+
+
+def _paired_windows(n: int, steps: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(x (n, steps, 1), other (n, 2 steps, 1)): the other modality runs at twice the frame rate with i.i.d.
+    standard normal frames, and x_t = other_{2t+1} + NOISE e_t, the other's frame under t's centre."""
+    rng = np.random.default_rng(seed)
+    other = rng.standard_normal((n, 2 * steps, 1))
+    x = other[:, 1::2] + NOISE * rng.standard_normal((n, steps, 1))
+    return torch.from_numpy(x).float(), torch.from_numpy(other).float()
+
+
+def test_aligned_context_picks_the_other_modalitys_frames_under_each_frame() -> None:
+    other = torch.arange(10.0).reshape(1, 10, 1)
+    # 4 frames over the other's 10: centres 0.5, 1.5, 2.5, 3.5 of 4 -> frames floor(1.25), floor(3.75), ...
+    got = aligned_context(other, 4, neighbours=1)[0]
+    assert got.tolist() == [[0, 1, 2], [2, 3, 4], [5, 6, 7], [7, 8, 9]]  # edges repeated
+    assert aligned_context(other, 10, neighbours=0)[0, :, 0].tolist() == list(range(10))
+
+
+def test_a_cross_modal_context_learns_the_exact_conditional() -> None:
+    # x_t given the other modality is N(other_{2t+1}, NOISE^2); its own neighbours say nothing (independent).
+    # Whitened by its spread s = sqrt(1 + NOISE^2), the mean -log p is that Gaussian's entropy minus log s.
+    train, train_other = _paired_windows(1000, 20, 0)
+    val, val_other = _paired_windows(200, 20, 1)
+    net = fit_context_net(train, val, seed=0, cross=(train_other, val_other))
+    own = fit_context_net(train, val, seed=0)
+    test, test_other = _paired_windows(300, 20, 2)
+    s = float(train.reshape(-1).double().std())
+    exact = 0.5 * math.log(2 * math.pi * math.e * NOISE**2) - math.log(s)
+    assert abs(float(net.nll(test, test_other).mean()) - exact) < 0.1
+    assert float(own.nll(test).mean()) > exact + 2.0  # without the other modality: about the marginal
+    # The frame that no longer matches the other modality's stands out; state round trip keeps the context.
+    moved = test.clone()
+    moved[:, 7] += 1.0  # 10 noise scales off
+    nominal = net.peak_distance(test, test_other)
+    assert net.peak_distance(moved, test_other).min() > torch.quantile(nominal, 0.95)
+    loaded = ContextNet.from_state(net.state(), torch.device("cpu"))
+    assert loaded.cross_p == 1 and torch.equal(loaded.nll(test, test_other), net.nll(test, test_other))
+
+
+def test_cross_frames_are_checked_and_an_older_state_loads_without_them() -> None:
+    train, other = _paired_windows(60, 10, 3)
+    net = fit_context_net(train, None, seed=0, cross=(other, None))
+    with pytest.raises(ValueError, match="needs cross frames of 1 values; got none"):
+        net.nll(train)
+    with pytest.raises(ValueError, match="needs cross frames of 1 values; got 2 values a frame"):
+        net.nll(train, other.repeat(1, 1, 2))
+    plain = fit_context_net(train, None, seed=0)
+    with pytest.raises(ValueError, match="has no cross-modal context"):
+        plain.nll(train, other)
+    with pytest.raises(ValueError, match="cross frames of 59 windows for 60 training windows"):
+        fit_context_net(train, None, seed=0, cross=(other[1:], None))
+    with pytest.raises(ValueError, match="validation windows are missing"):
+        fit_context_net(train, train[:5], seed=0, cross=(other, None))
+    # A state saved before cross-modal contexts existed has no cross_* entries: it loads as a plain network.
+    state = {k: v for k, v in plain.state().items() if not k.startswith("cross")}
+    assert torch.equal(ContextNet.from_state(state, torch.device("cpu")).nll(train), plain.nll(train))

@@ -349,7 +349,7 @@ class MSVDD(Detector):
         for m, frames in enumerate(train):
             v = None if val is None else val[m]
             cross = None
-            if m == 1:  # the IMU of an audio-IMU model: its frames given the log-mel frames too
+            if m == 1:  # the IMU of an audio-IMU model: its frames given the audio frames too
                 cross = (train[0], None if val is None else val[0])
             densities.append(fit_context_net(frames, v, seed, cross=cross))
         return densities

@@ -145,11 +145,11 @@ class ContextNet(nn.Module):
     def nll(self, frames: torch.Tensor, cross: torch.Tensor | None = None) -> torch.Tensor:
         """(N, T, p) window frames [and cross frames] -> (N, T) float64 -log p(x_t | c_t), in blocks of
         windows, no gradient."""
-        crosses = [None] * len(frames.split(_BLOCK)) if cross is None else list(cross.split(_BLOCK))
+        blocks = frames.split(_BLOCK)
+        crosses = [None] * len(blocks) if cross is None else list(cross.split(_BLOCK))
         with torch.inference_mode():
             out = [
-                self.window_nll(block, c).to(torch.float64)
-                for block, c in zip(frames.split(_BLOCK), crosses, strict=True)
+                self.window_nll(block, c).to(torch.float64) for block, c in zip(blocks, crosses, strict=True)
             ]
         if not out:
             return torch.zeros(0, frames.shape[1], dtype=torch.float64, device=frames.device)

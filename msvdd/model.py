@@ -303,6 +303,12 @@ class MSVDD(Detector):
 
     def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
         """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
+        if self.config.rec_score == "fused":
+            frames = self.input_frames(audio, imu)
+            nets = [g for g in self.rec_density_ or [] if isinstance(g, ContextNet)]
+            if len(nets) != len(frames):
+                raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
+            return [g.peak_distance(f, _cross(g, frames)) for g, f in zip(nets, frames, strict=True)]
         pairs = self._rec_pairs(out, audio, imu)
         if self.config.rec_score == "mean":
             return [huber_per_window(x, x_hat) for x, x_hat, *_ in pairs]
@@ -310,12 +316,6 @@ class MSVDD(Detector):
             return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
         if self.rec_density_ is None or len(self.rec_density_) != len(pairs):
             raise NotFittedError("MSVDD is not fitted: its frame densities are missing")
-        if self.config.rec_score == "fused":
-            frames = [cut_frames(x, axis, frame) for x, _, axis, _, frame in pairs]
-            return [
-                g.peak_distance(f, _cross(g, frames)) if isinstance(g, ContextNet) else g.peak_distance(f)
-                for g, f in zip(self.rec_density_, frames, strict=True)
-            ]
         return [
             g.peak_distance(residual_frames(x, x_hat, axis, frame))
             for g, (x, x_hat, axis, _, frame) in zip(self.rec_density_, pairs, strict=True)

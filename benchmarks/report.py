@@ -26,6 +26,7 @@ from benchmarks.uncertainty import (
     BOOTSTRAP_SEED,
     CONFIDENCE,
     MIN_EPISODES_PER_CLASS,
+    BootstrapAuc,
     Interval,
     bootstrap_mean_auc,
     episode_draws,
@@ -118,6 +119,8 @@ class MethodIntervals:
     """By key (`auc`, `auc_collision`, `auc_mechanical`, `auc_<sub-kind>`): the seed-mean AUC and interval."""
     vs_reference: dict[str, Interval] = field(default_factory=dict)
     """The same keys: this method's AUC minus the reference's, same draws (empty without the reference)."""
+    reference_seeds: tuple[int, ...] = ()
+    """The reference's training seeds in `vs_reference` (`paired_reference_seeds`; empty without it)."""
 
 
 @dataclass(frozen=True)
@@ -173,6 +176,26 @@ def _severity_subsets(
     return out
 
 
+def paired_reference_seeds(method_seeds: Sequence[int], reference_seeds: Sequence[int]) -> tuple[int, ...]:
+    """The reference's seeds a method is compared with: its own seeds when the reference was trained with
+    every one of them and more (an ablation trained once against a three-seed reference is paired with the
+    reference's model of the same seed, so the difference is the ablated part, not the reference's seed
+    spread), else every seed of the reference."""
+    own, ref = set(method_seeds), set(reference_seeds)
+    return tuple(sorted(own if own < ref else ref))
+
+
+def _seed_mean_auc(
+    runs: Sequence[tuple[int, np.ndarray]],
+    keep: np.ndarray,
+    positive: np.ndarray,
+    episodes: np.ndarray,
+    weights: np.ndarray,
+) -> BootstrapAuc:
+    """`bootstrap_mean_auc` of the (seed, scores) `runs` on the windows `keep`."""
+    return bootstrap_mean_auc(np.stack([s[keep] for _, s in runs]), positive, episodes[keep], weights)
+
+
 def auc_intervals(
     rows: Sequence[WindowRow],
     scores: Sequence[MethodScores],
@@ -187,15 +210,22 @@ def auc_intervals(
     The clusters are the test windows' episodes. Each AUC subset (every normal window against one group of
     anomalous windows) gets one set of episode draws, applied to every seed of every method: a method's AUC
     is the mean over its seeds, in the data and inside each replicate, and its difference against
-    `reference` is taken replicate by replicate (exactly 0 for the reference itself).
+    `reference` (the reference's mean over `paired_reference_seeds`) is taken replicate by replicate
+    (exactly 0 for the reference itself).
     """
     kinds = np.array([r.kind for r in rows]).astype(str)
     sub_kinds = np.array([r.sub_kind for r in rows]).astype(str)
     episodes = np.array([r.episode for r in rows]).astype(str)
     normal = kinds == "normal"
-    by_method: dict[str, list[np.ndarray]] = {}
+    by_method: dict[str, list[tuple[int, np.ndarray]]] = {}
     for ms in scores:
-        by_method.setdefault(ms.method, []).append(np.asarray(ms.scores, dtype=np.float64))
+        by_method.setdefault(ms.method, []).append((ms.seed, np.asarray(ms.scores, dtype=np.float64)))
+    paired: dict[str, tuple[int, ...]] = {}
+    if reference in by_method:
+        ref_seeds = [seed for seed, _ in by_method[reference]]
+        paired = {
+            m: paired_reference_seeds([seed for seed, _ in runs], ref_seeds) for m, runs in by_method.items()
+        }
     subsets = {
         "auc": np.ones(kinds.size, dtype=bool),
         "auc_collision": normal | (kinds == "collision"),
@@ -209,14 +239,20 @@ def auc_intervals(
     for key, keep in subsets.items():
         positive = ~normal[keep]
         weights = episode_draws(episodes[keep], positive, replicates, seed)
-        boot = {m: bootstrap_mean_auc(np.stack([s[keep] for s in runs]), positive, episodes[keep], weights)
-                for m, runs in by_method.items()}  # fmt: skip
-        for m, b in boot.items():
+
+        boots = {m: _seed_mean_auc(runs, keep, positive, episodes, weights) for m, runs in by_method.items()}
+        ref_boots = {
+            seeds: _seed_mean_auc(
+                [r for r in by_method[reference] if r[0] in seeds], keep, positive, episodes, weights
+            )
+            for seeds in set(paired.values())
+        }
+        for m, b in boots.items():
             auc[m][key] = b.interval()
-            if reference in boot:
-                diff[m][key] = b.minus(boot[reference])
+            if m in paired:
+                diff[m][key] = b.minus(ref_boots[paired[m]])
     return RunIntervals(
-        methods={m: MethodIntervals(auc[m], diff[m]) for m in by_method},
+        methods={m: MethodIntervals(auc[m], diff[m], paired.get(m, ())) for m in by_method},
         reference=reference if reference in by_method else None,
         normal_episodes=len(set(episodes[normal])),
         anomalous_episodes=len(set(episodes[~normal])),
@@ -413,6 +449,18 @@ def _interval_notes(intervals: RunIntervals | None, n_seeds: int) -> list[str]:
             "  **A difference inside the interval is not a ranking**: when the interval of a difference"
             " contains zero, this test set does not tell the two methods apart, whatever their AUCs.",
         ]
+        all_seeds = intervals.methods[intervals.reference].reference_seeds
+        fewer = {
+            m: mi.reference_seeds for m, mi in intervals.methods.items() if mi.reference_seeds != all_seeds
+        }
+        if fewer:
+            names = ", ".join(
+                f"{m} (seeds {', '.join(map(str, seeds))})" for m, seeds in sorted(fewer.items())
+            )
+            lines.append(
+                "- Trained with fewer seeds than M-SVDD, and so compared with M-SVDD's models of the same"
+                f" training seeds (the ablated part, not M-SVDD's seed spread): {names}."
+            )
     else:
         lines.append(
             "  A difference between two AUCs that lies inside their intervals is not a ranking"
@@ -598,7 +646,7 @@ def results_json(
 
     With `intervals`, each method gets `auc_ci95` (per AUC key: value, low, high) and
     `auc_diff_vs_reference` (the same keys: paired difference against `uncertainty.reference`, with
-    `excludes_zero`).
+    `excludes_zero`; the reference's seeds in it: `auc_diff_reference_seeds`).
     """
     doc: dict[str, Any] = {
         "preset": info.preset,
@@ -628,6 +676,7 @@ def results_json(
                 k: {**iv.to_dict(), "excludes_zero": excludes_zero(iv)}
                 for k, iv in found.vs_reference.items()
             }
+            entry["auc_diff_reference_seeds"] = list(found.reference_seeds)
         doc["methods"][name] = entry
     if intervals is not None:
         doc["uncertainty"] = {

@@ -55,6 +55,30 @@ def test_intervals_cover_every_auc_and_the_reference_against_itself_is_zero() ->
     assert run.methods["audio-rms"].auc["auc"] == single
 
 
+def test_a_one_seed_method_is_paired_with_the_reference_model_of_its_seed() -> None:
+    """Oracle: a copy of M-SVDD's seed-1 model trained once with seed 1 differs from M-SVDD by exactly 0 when
+    paired with that seed, while a method with every seed of M-SVDD is compared with the seed mean."""
+    rows = _rows()
+    reference = [_scores(rows, "msvdd", s, 1.0) for s in (0, 1, 2)]
+    copy = MethodScores("msvdd-euclidean", 1, reference[1].scores.copy(), 0.5)
+    others = [_scores(rows, "audio-rms", s, 0.5) for s in (0, 1, 2)]
+    run = auc_intervals(rows, [*reference, copy, *others], replicates=200)
+    assert run.methods["msvdd-euclidean"].reference_seeds == (1,)
+    assert all(
+        iv.value == iv.low == iv.high == 0.0 for iv in run.methods["msvdd-euclidean"].vs_reference.values()
+    )
+    assert run.methods["audio-rms"].reference_seeds == run.methods["msvdd"].reference_seeds == (0, 1, 2)
+    mean_of_three = run.methods["msvdd"].auc["auc"].value
+    rms = run.methods["audio-rms"]
+    assert rms.vs_reference["auc"].value == pytest.approx(rms.auc["auc"].value - mean_of_three, abs=1e-12)
+    per_method = {m: [compute_metrics(r.scores, 0.5, np.array([w.kind for w in rows]))] for m, r in
+                  (("msvdd", reference[0]), ("msvdd-euclidean", copy), ("audio-rms", others[0]))}  # fmt: skip
+    assert "msvdd-euclidean (seeds 1)" in markdown(INFO, per_method, run)
+    assert results_json(INFO, per_method, run)["methods"]["msvdd-euclidean"]["auc_diff_reference_seeds"] == [
+        1
+    ]
+
+
 def test_report_without_msvdd_has_intervals_but_no_differences() -> None:
     rows = _rows()
     kinds = np.array([r.kind for r in rows])

@@ -239,7 +239,6 @@ def auc_intervals(
     for key, keep in subsets.items():
         positive = ~normal[keep]
         weights = episode_draws(episodes[keep], positive, replicates, seed)
-
         boots = {m: _seed_mean_auc(runs, keep, positive, episodes, weights) for m, runs in by_method.items()}
         ref_boots = {
             seeds: _seed_mean_auc(

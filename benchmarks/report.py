@@ -240,8 +240,10 @@ def auc_intervals(
         positive = ~normal[keep]
         weights = episode_draws(episodes[keep], positive, replicates, seed)
         boots = {m: _seed_mean_auc(runs, keep, positive, episodes, weights) for m, runs in by_method.items()}
-        ref_boots = {
-            seeds: _seed_mean_auc(
+        ref_boots = {  # the reference with every seed is boots[reference]; only seed subsets are new
+            seeds: boots[reference]
+            if seeds == paired[reference]
+            else _seed_mean_auc(
                 [r for r in by_method[reference] if r[0] in seeds], keep, positive, episodes, weights
             )
             for seeds in set(paired.values())

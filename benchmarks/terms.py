@@ -1,7 +1,7 @@
 """The fusion ablation of the frame-density references, untrained: `msvdd-bench terms MODEL... --data DIR`.
 
-`gaussian-frames`, `mixture-frames`, `context-frames` and `context-net-frames` score a window by the sum of
-two terms, the log-mel frames' and the IMU frames' (`FrameReference.modality_scores`), each fitted on its own
+`context-net-frames` scores a window by the sum of two terms, the log-mel frames' and the IMU frames'
+(`ContextNetFrames.modality_scores`), each fitted on its own
 modality only and divided by its own training mean. A term alone is therefore exactly that reference's
 single-modality detector (the same fit; the scale does not change an AUC), and one scoring of the test split
 gives audio alone, IMU alone and their fusion: each one's AUC with its episode-cluster bootstrap interval and
@@ -23,7 +23,7 @@ import numpy as np
 from benchmarks import methods
 from benchmarks.dataset import open_dataset
 from benchmarks.errors import UserError
-from benchmarks.methods.frames import MODALITY_NAMES, FrameReference
+from benchmarks.methods.frames import MODALITY_NAMES, ContextNetFrames
 from benchmarks.modalities import require_modalities
 from benchmarks.pipeline import test_windows
 from benchmarks.uncertainty import (
@@ -79,18 +79,18 @@ class TermsReport:
 
 
 def frame_methods() -> list[str]:
-    """Registered methods whose detectors score by modality terms (`FrameReference` and subclasses)."""
-    return [n for n in methods.names() if issubclass(methods.spec(n).cls, FrameReference)]
+    """Registered methods whose detectors score by modality terms (`ContextNetFrames`)."""
+    return [n for n in methods.names() if issubclass(methods.spec(n).cls, ContextNetFrames)]
 
 
-def load_references(model_dirs: Sequence[Path]) -> tuple[str, list[FrameReference]]:
+def load_references(model_dirs: Sequence[Path]) -> tuple[str, list[ContextNetFrames]]:
     """(method, detectors) of model folders of one frame-density method; UserError naming the folder else."""
     if not model_dirs:
         raise UserError("terms needs at least one model folder")
     name, detectors = "", []
     for folder in model_dirs:
         method, detector = methods.load_detector(folder)
-        if not isinstance(detector, FrameReference):
+        if not isinstance(detector, ContextNetFrames):
             raise UserError(
                 f"{folder} holds method {method!r}, whose score is not a sum of modality terms; terms reads "
                 f"the frame-density references only: {', '.join(frame_methods())} (for M-SVDD's own terms "

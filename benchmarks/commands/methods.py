@@ -16,15 +16,15 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from benchmarks import methods
-    from benchmarks.report import paper_rows
 
     entries: list[dict[str, Any]] = [
         {
             "name": spec.name,
             "family": spec.family,
             "modality": spec.modality,
-            "paper": paper_rows(spec.name),
+            "paper": spec.paper_rows(),
             "description": spec.description,
+            "config": spec.config,
         }
         for spec in map(methods.spec, methods.names(args.family))  # specs only: nothing is built
     ]
@@ -49,7 +49,7 @@ COMMAND = Command(
     description=(
         "List every registered method (nothing is built or trained): its name for --method and --methods, "
         "its family, the sensors it reads, where it appears in the paper's tables (as results.md shows "
-        "it), and a one-line description."
+        "it), a one-line description and (--json) its configuration."
     ),
     example="msvdd-bench methods\nmsvdd-bench methods --family msvdd --json",
 )

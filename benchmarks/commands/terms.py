@@ -14,8 +14,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         type=Path,
         nargs="+",
         metavar="MODEL",
-        help="model folder(s) of one frame-density method (gaussian-frames, mixture-frames, context-frames, "
-        "context-net-frames), one per training seed",
+        help="model folder(s) of a frame-density method (context-net-frames), one per training seed",
     )
     p.add_argument("--data", type=Path, required=True, help="dataset folder whose test split is scored")
     p.add_argument("--json", type=Path, default=None, help="also write the report to this JSON file")
@@ -52,7 +51,7 @@ COMMAND = Command(
         "ablation without training anything. Prints markdown; --md also writes it to a file, --json as JSON."
     ),
     example=(
-        "msvdd-bench terms runs/bench/models/context-frames-seed0 runs/bench/models/context-frames-seed1 "
-        "--data runs/paper-eval"
+        "msvdd-bench terms runs/paper/models/context-net-frames-seed0 "
+        "runs/paper/models/context-net-frames-seed1 --data runs/paper-eval"
     ),
 )

@@ -207,6 +207,7 @@ class DcaseAutoencoder(WindowDetector):
 def register_methods() -> None:
     """Register `dcase-ae`."""
     from benchmarks.methods.registry import register
+    from benchmarks.methods.spec import PaperRow
 
     def make(seed: int, scale: str, device: str) -> DcaseAutoencoder:
         return DcaseAutoencoder(DcaseAEConfig.for_scale(seed, scale, device))
@@ -218,4 +219,6 @@ def register_methods() -> None:
         family="deep",
         modality="audio",
         description="DCASE 2020 Task 2 baseline: dense autoencoder on 5-frame log-mel vectors, audio only",
+        paper=(PaperRow("Table I", 7, "DCASE AE (log-mel)"),),
+        config="DcaseAEConfig",
     )

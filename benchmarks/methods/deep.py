@@ -285,14 +285,35 @@ class DAGMM(DeepDetector):
 def register_methods() -> None:
     """Register `dsvdd`, `dae`, `vae-svdd` and `dagmm`."""
     from benchmarks.methods.registry import register
+    from benchmarks.methods.spec import PaperRow
 
-    table: tuple[tuple[str, type[DeepDetector], str], ...] = (
-        ("dsvdd", DeepSVDD, "Deep SVDD (one-class) with the reconstruction branch, M-SVDD's network"),
-        ("dae", DeepAutoencoder, "deep autoencoder (M-SVDD's encoders and decoders), reconstruction error"),
-        ("vae-svdd", VAESVDD, "token-level VAE with a Deep SVDD loss on the fused embedding"),
-        ("dagmm", DAGMM, "DAGMM: FusionNet compression network and a Gaussian-mixture estimation network"),
+    table: tuple[tuple[str, type[DeepDetector], str, PaperRow], ...] = (
+        (
+            "dsvdd",
+            DeepSVDD,
+            "Deep SVDD (one-class) with the reconstruction branch, M-SVDD's network",
+            PaperRow("Table I", 9, "DSVDD"),
+        ),
+        (
+            "dae",
+            DeepAutoencoder,
+            "deep autoencoder (M-SVDD's encoders and decoders), reconstruction error",
+            PaperRow("Table I", 6, "DAE"),
+        ),
+        (
+            "vae-svdd",
+            VAESVDD,
+            "token-level VAE with a Deep SVDD loss on the fused embedding",
+            PaperRow("Table I", 8, "VAE-SVDD"),
+        ),
+        (
+            "dagmm",
+            DAGMM,
+            "DAGMM: FusionNet compression network and a Gaussian-mixture estimation network",
+            PaperRow("Table I", 5, "DAGMM"),
+        ),
     )
-    for name, cls, text in table:
+    for name, cls, text, row in table:
         register(
             name,
             _factory(cls),
@@ -300,6 +321,8 @@ def register_methods() -> None:
             family="deep",
             modality="audio+imu",
             description=text,
+            paper=(row,),
+            config="MSVDDConfig(use_mahalanobis=False): M-SVDD's network and budget",
         )
 
 

@@ -161,6 +161,7 @@ class DeepIsolationForest(WindowDetector):
 def register_methods() -> None:
     """Register `deep-if`."""
     from benchmarks.methods.registry import register
+    from benchmarks.methods.spec import PaperRow
 
     def make(seed: int, scale: str, device: str) -> DeepIsolationForest:
         net = scale_config(
@@ -175,4 +176,6 @@ def register_methods() -> None:
         family="deep",
         modality="audio+imu",
         description="Deep Isolation Forest: isolation forests on random M-SVDD network representations",
+        paper=(PaperRow("Table I", 4, "DeepForest"),),
+        config="DeepIFConfig; random MSVDDConfig(use_reconstruction=False, use_mahalanobis=False) networks",
     )

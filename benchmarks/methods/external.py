@@ -17,7 +17,7 @@ import inspect
 from typing import Any, cast
 
 from benchmarks.errors import UserError
-from benchmarks.methods.registry import MODALITIES, MethodSpec
+from benchmarks.methods.spec import MODALITIES, MethodSpec
 from msvdd.contract import Detector
 
 EXTERNAL_FAMILY = "external"

@@ -102,4 +102,6 @@ def register_methods() -> None:
             family="reference",
             modality=reads,
             description=f"reference: Ledoit-Wolf Mahalanobis distance on {label} window statistics",
+            label=f"Gaussian, {label} statistics",
+            config=f"GaussianReference(modality={modality!r})",
         )

@@ -70,6 +70,7 @@ def register_methods() -> None:
         family="naive",
         modality="audio",
         description="window audio RMS (sanity baseline)",
+        label="audio RMS",
     )
     register(
         "imu-kurtosis",
@@ -78,4 +79,5 @@ def register_methods() -> None:
         family="naive",
         modality="imu",
         description="excess kurtosis of the IMU window (sanity baseline)",
+        label="IMU kurtosis",
     )

@@ -7,23 +7,37 @@ import dataclasses
 import json
 import os
 import platform
-from collections.abc import Callable
-from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
 from benchmarks.errors import InputNotFoundError, UserError, check_seed
 from benchmarks.methods._io import atomic_path, write_text_atomic
 from benchmarks.methods.base import check_scale
+from benchmarks.methods.spec import (
+    DEVICES,
+    FAMILIES,
+    MODALITIES,
+    Factory,
+    MethodSpec,
+    PaperRow,
+    check_spec,
+)
 from msvdd.contract import Detector, ModelFormatError
 
-FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive", "external")
-"""Method families: M-SVDD and its ablations, deep baselines, shallow baselines, the audit's reference
-detector (a Gaussian on fixed window statistics), naive sanity baselines, and detectors from outside the
-project (`module:Class`, `benchmarks.methods.external`; never in the registry itself)."""
-
-MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu")
-"""Which sensors a method reads."""
+__all__ = [
+    "DEVICES",
+    "FAMILIES",
+    "MODALITIES",
+    "Factory",
+    "MethodSpec",
+    "PaperRow",
+    "load_detector",
+    "make",
+    "names",
+    "register",
+    "save_detector",
+    "spec",
+]
 
 METHOD_FORMAT_VERSION = 1
 """Version of the `method.json` layout written by `save_detector`."""
@@ -31,54 +45,28 @@ METHOD_FORMAT_VERSION = 1
 METHOD_FILE = "method.json"
 MODEL_FILE = "model.bin"
 
-Factory = Callable[[int, str, str], Detector]
-"""factory(seed, scale, device) -> an unfitted detector; CPU-only methods ignore the device."""
-
-DEVICES: tuple[str, ...] = ("cpu", "cuda", "auto")
-"""Torch devices a method may be built for ("auto" = CUDA when available)."""
-
-
-@dataclass(frozen=True)
-class MethodSpec:
-    """One registered method."""
-
-    name: str
-    """Registry name, e.g. `msvdd`, `iforest-early`."""
-    factory: Factory
-    """factory(seed, scale, device) -> an unfitted detector."""
-    family: str
-    """One of `FAMILIES`."""
-    modality: str
-    """One of `MODALITIES`."""
-    description: str
-    """One line for tables and `--help`."""
-    cls: type[Detector]
-    """The class of the detectors `factory` builds; its `load` reads saved models."""
-
-
 _REGISTRY: dict[str, MethodSpec] = {}
 
 
 def register(
-    name: str, factory: Factory, *, cls: type[Detector], family: str, modality: str, description: str
+    name: str,
+    factory: Factory,
+    *,
+    cls: type[Detector],
+    family: str,
+    modality: str,
+    description: str,
+    label: str = "",
+    paper: tuple[PaperRow, ...] = (),
+    config: str = "",
 ) -> None:
-    """Register a method under `name`.
-
-    Args:
-        name: unique registry name.
-        factory: factory(seed, scale, device) -> unfitted detector of class `cls`.
-        cls: the detector class; its `load` reads saved models.
-        family: one of `FAMILIES`.
-        modality: one of `MODALITIES`.
-        description: one line.
-    """
+    """Register a method under `name`: its one descriptor (`benchmarks.methods.spec.MethodSpec`, whose
+    fields the arguments are)."""
     if name in _REGISTRY:
         raise ValueError(f"method {name!r} is already registered")
-    if family not in FAMILIES:
-        raise ValueError(f"family {family!r} is unknown; allowed: {', '.join(FAMILIES)}")
-    if modality not in MODALITIES:
-        raise ValueError(f"modality {modality!r} is unknown; allowed: {', '.join(MODALITIES)}")
-    _REGISTRY[name] = MethodSpec(name, factory, family, modality, description, cls)
+    _REGISTRY[name] = check_spec(
+        MethodSpec(name, factory, family, modality, description, cls, label, paper, config)
+    )
 
 
 def names(family: str | None = None) -> list[str]:

@@ -217,6 +217,10 @@ _TITLES = {
 }
 
 
+_PAPER_ROWS: dict[str, tuple[int, str]] = {"iforest": (1, "IF"), "ocsvm": (2, "OCSVM"), "svdd": (3, "SVDD †")}
+"""Each model's position and label in the paper's Table I (the † marks the footnote on SVDD = OCSVM)."""
+
+
 def _factory(model: str, fusion: str) -> Any:
     def make(seed: int, scale: str, device: str) -> ShallowDetector:
         return ShallowDetector(ShallowConfig.for_scale(model, fusion, seed, scale))
@@ -227,10 +231,12 @@ def _factory(model: str, fusion: str) -> Any:
 def register_methods() -> None:
     """Register `iforest-early`, `iforest-late`, `ocsvm-early`, `ocsvm-late`, `svdd-early`, `svdd-late`."""
     from benchmarks.methods.registry import register
+    from benchmarks.methods.spec import PaperRow
 
     for model in MODELS:
         for fusion in FUSIONS:
             how = "one model on concatenated" if fusion == "early" else "one model per modality on"
+            position, label = _PAPER_ROWS[model]
             register(
                 f"{model}-{fusion}",
                 _factory(model, fusion),
@@ -238,4 +244,6 @@ def register_methods() -> None:
                 family="shallow",
                 modality="audio+imu",
                 description=f"{_TITLES[model]}, {fusion} fusion: {how} log-mel + IMU features",
+                paper=(PaperRow("Table I", position, f"{label} ({fusion} fusion)"),),
+                config=f"ShallowConfig(model={model!r}, fusion={fusion!r})",
             )

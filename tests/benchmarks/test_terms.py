@@ -1,4 +1,4 @@
-"""`msvdd-bench terms`: the frame references' modality terms sum to their score, each term's AUC is
+"""`msvdd-bench terms`: the frame reference's modality terms sum to its score, each term's AUC is
 scikit-learn's on that term, and groups whose answer is known by construction get it."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from benchmarks import methods, pipeline
 from benchmarks.cli import main
 from benchmarks.dataset import open_dataset
 from benchmarks.errors import UserError
-from benchmarks.methods.frames import MODALITY_NAMES, FrameReference
+from benchmarks.methods.frames import MODALITY_NAMES, ContextNetFrames
 from benchmarks.pipeline import train_method
 from benchmarks.terms import FUSION, frame_methods, group_terms, load_references, modality_terms
 from msvdd.contract import NotFittedError, WindowError
@@ -25,9 +25,9 @@ def test_modality_scores_sum_to_the_score() -> None:
     train, _ = toy_windows(40, 0, seed=3)
     test, _ = toy_windows(4, 4, seed=4)
     with pytest.raises(NotFittedError):
-        FrameReference().modality_scores(test)
-    det = methods.make("context-frames", seed=0, scale="smoke").fit(train)
-    assert isinstance(det, FrameReference)
+        ContextNetFrames().modality_scores(test)
+    det = methods.make("context-net-frames", seed=0, scale="smoke").fit(train)
+    assert isinstance(det, ContextNetFrames)
     terms = det.modality_scores(test)
     assert terms.shape == (len(test), len(MODALITY_NAMES)) and terms.dtype == np.float64
     np.testing.assert_array_equal(terms.sum(axis=1), det.score(test))
@@ -37,13 +37,8 @@ def test_modality_scores_sum_to_the_score() -> None:
         det.modality_scores("not windows")  # type: ignore[arg-type]
 
 
-def test_frame_methods_are_the_four_references() -> None:
-    assert set(frame_methods()) == {
-        "gaussian-frames",
-        "mixture-frames",
-        "context-frames",
-        "context-net-frames",
-    }
+def test_frame_methods_are_the_frame_density_reference() -> None:
+    assert frame_methods() == ["context-net-frames"]
 
 
 def test_groups_known_by_construction() -> None:
@@ -85,11 +80,11 @@ def test_groups_known_by_construction() -> None:
 
 @pytest.fixture(scope="module")
 def frame_models(tiny_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """`context-frames` at the smoke scale on `tiny_dataset`, two training seeds."""
+    """`context-net-frames` at the smoke scale on `tiny_dataset`, two training seeds."""
     root = tmp_path_factory.mktemp("frame-models")
     data = open_dataset(tiny_dataset)
     return [
-        train_method(data, "context-frames", k, "smoke", root / f"context-frames-seed{k}").path
+        train_method(data, "context-net-frames", k, "smoke", root / f"context-net-frames-seed{k}").path
         for k in (0, 1)
     ]
 
@@ -103,7 +98,7 @@ def test_report_matches_the_models_scores(
     dets = [load_references([p])[1][0] for p in frame_models]
     overall = report.groups[0]
     assert overall.group == "all anomalies" and overall.windows == int(y.sum())
-    assert report.normal_windows == int((~y).sum()) and report.method == "context-frames"
+    assert report.normal_windows == int((~y).sum()) and report.method == "context-net-frames"
     want_fusion = np.mean([roc_auc_score(y, d.score(windows)) for d in dets])
     assert overall.auc[FUSION].value == pytest.approx(want_fusion)
     for m, name in enumerate(MODALITY_NAMES):
@@ -116,21 +111,18 @@ def test_report_matches_the_models_scores(
     assert main(["terms", *map(str, frame_models), "--data", str(tiny_dataset), *files]) == 0
     printed = capsys.readouterr().out
     assert md.read_text(encoding="utf-8") == printed
-    assert printed.startswith("# Modality terms of `context-frames` (2 model(s))")
+    assert printed.startswith("# Modality terms of `context-net-frames` (2 model(s))")
     assert "| all anomalies |" in printed and "Over all anomalies" in printed
     doc = json.loads(out.read_text(encoding="utf-8"))
     assert doc["groups"][0]["auc"]["fusion"]["value"] == pytest.approx(want_fusion)
     assert [g["group"] for g in doc["groups"]] == [g.group for g in report.groups]
 
 
-def test_refuses_other_methods_and_mixed_folders(
+def test_refuses_other_methods(
     tiny_dataset: Path, tiny_model: Path, frame_models: list[Path], tmp_path: Path
 ) -> None:
     with pytest.raises(UserError, match=r"holds method 'msvdd'.*context-net-frames.*diagnose"):
         load_references([tiny_model])
-    other = train_method(open_dataset(tiny_dataset), "gaussian-frames", 0, "smoke", tmp_path / "g").path
-    with pytest.raises(UserError, match=r"holds method 'gaussian-frames' but .* holds 'context-frames'"):
-        load_references([frame_models[0], other])
     with pytest.raises(UserError, match="at least one model"):
         load_references([])
     assert main(["terms", str(tiny_model), "--data", str(tiny_dataset)]) == 2

@@ -10,7 +10,7 @@ import csv
 import itertools
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +19,7 @@ import numpy as np
 
 from benchmarks import methods
 from benchmarks.dataset import WindowRow
+from benchmarks.methods.spec import PAPER_TABLES
 from benchmarks.metrics import MethodMetrics, aggregate, roc_curve
 from benchmarks.pipeline import MethodScores
 from benchmarks.uncertainty import (
@@ -35,23 +36,6 @@ from benchmarks.uncertainty import (
 )
 from msvdd.contract import MIN_HELD_OUT, THRESHOLD_QUANTILE
 
-COMPARISON: tuple[tuple[str, str], ...] = (
-    ("iforest", "IF"),
-    ("ocsvm", "OCSVM"),
-    ("svdd", "SVDD †"),
-    ("deep-if", "DeepForest"),
-    ("dagmm", "DAGMM"),
-    ("dae", "DAE"),
-    ("dcase-ae", "DCASE AE (log-mel)"),
-    ("vae-svdd", "VAE-SVDD"),
-    ("dsvdd", "DSVDD"),
-    ("msvdd-paper", "M-SVDD (the paper's configuration)"),
-    ("msvdd-mixture", "M-SVDD, residual frames on their own (an earlier `msvdd`)"),
-    ("msvdd-context", "M-SVDD, residual frames given their neighbours (the previous `msvdd`)"),
-    ("msvdd", "**M-SVDD (ours)**"),
-)
-"""Table I rows: registry name (shallow ones get -early/-late) and the paper's label (DCASE AE is ours)."""
-
 SVDD_NOTE = (
     "† The SVDD rows equal the OCSVM rows by construction: with an RBF kernel the SVDD and one-class SVM"
     " duals coincide (Tax & Duin 2004; Schölkopf et al. 2001), so `svdd-*` is fitted as the same"
@@ -59,43 +43,32 @@ SVDD_NOTE = (
 )
 """Footnote under Table I whenever it has an SVDD row."""
 
-MODULE_ABLATION: tuple[tuple[str, str], ...] = (
-    ("msvdd-imu-only", "w/o audio"),
-    ("msvdd-audio-only", "w/o IMU"),
-    ("msvdd-no-rec", "w/o reconstruction"),
-    ("msvdd-euclidean", "w/o M-SVDD (Euclidean)"),
-    ("msvdd", "full model"),
-)
-FUSION_ABLATION: tuple[tuple[str, str], ...] = (
-    ("msvdd-fusion-concat", "Concatenate"),
-    ("msvdd-fusion-sum", "Element-wise sum"),
-    ("msvdd-fusion-product", "Element-wise product"),
-    ("msvdd", "Cross-attention"),
-)
-LATENT_SWEEP: tuple[tuple[str, str], ...] = (
-    ("msvdd-s2", "s = 2"),
-    ("msvdd-s4", "s = 4"),
-    ("msvdd-s8", "s = 8"),
-    ("msvdd-s16", "s = 16"),
-    ("msvdd", "s = 32"),
-    ("msvdd-s64", "s = 64"),
-)
-NAIVE: tuple[tuple[str, str], ...] = (("audio-rms", "audio RMS"), ("imu-kurtosis", "IMU kurtosis"))
-REFERENCE: tuple[tuple[str, str], ...] = (
-    ("gaussian-early", "Gaussian, log-mel + IMU statistics"),
-    ("gaussian-audio", "Gaussian, log-mel statistics"),
-    ("gaussian-imu", "Gaussian, IMU statistics"),
-    ("gaussian-frames", "Gaussian, log-mel and IMU frames (largest frame distance)"),
-    ("mixture-frames", "Gaussian mixture, log-mel and IMU frames (largest frame distance)"),
-    ("context-frames", "Gaussian mixtures, log-mel and IMU frames given their neighbours"),
-    ("context-net-frames", "the same, the log-mel frames' density learned (mixture density network)"),
-)
-"""The reference detectors (densities of the inputs, no M-SVDD network): the audit's
-Ledoit-Wolf Gaussian on fixed window statistics, the frame-wise Gaussian of M-SVDD's input frames
-(`rec_score="mahalanobis"` without the network), the frame-wise Gaussian mixture (`msvdd`'s reconstruction
-term, `rec_score="mixture"`, without the network; `benchmarks.methods.frames`), the frame-wise mixtures given
-each frame's neighbours (`context-frames`), and the same with the log-mel frames' conditional density learned
-by a small network (`context-net-frames`)."""
+Rows = tuple[tuple[str, str], ...]
+"""A table's rows: (method, label)."""
+
+
+def paper_table(table: str, available: Iterable[str] | None = None) -> Rows:
+    """The rows of one of the paper's tables (`benchmarks.methods.spec.PAPER_TABLES`) from the methods'
+    descriptors, in the paper's order, optionally only the `available` methods."""
+    keep = None if available is None else set(available)
+    found = [
+        (row.position, index, name, row.label)
+        for index, name in enumerate(methods.names())
+        for row in methods.spec(name).paper
+        if row.table == table and (keep is None or name in keep)
+    ]
+    return tuple((name, label) for _, _, name, label in sorted(found))
+
+
+def family_table(family: str, available: Iterable[str] | None = None) -> Rows:
+    """The rows of one family's methods (reference, naive), labelled by their descriptors."""
+    keep = None if available is None else set(available)
+    return tuple(
+        (name, methods.spec(name).row_label())
+        for name in methods.names(family)
+        if keep is None or name in keep
+    )
+
 
 TOO_EASY_AUC = 0.9
 """A naive baseline at or above this AUC means the benchmark is too easy, and the report says so."""
@@ -124,6 +97,18 @@ class MethodIntervals:
 
 
 @dataclass(frozen=True)
+class NaiveComparison:
+    """The best naive baseline of a run against its best other detector, on every anomaly."""
+
+    naive: str
+    """The naive baseline (family `naive`) with the highest AUC."""
+    best: str
+    """The method of any other family with the highest AUC."""
+    difference: Interval
+    """`naive`'s AUC minus `best`'s, on the same episode draws (seed means)."""
+
+
+@dataclass(frozen=True)
 class RunIntervals:
     """The episode-cluster bootstrap intervals of a run."""
 
@@ -139,6 +124,8 @@ class RunIntervals:
     """Bootstrap replicates."""
     seed: int
     """Seed of the episode draws."""
+    naive_vs_best: NaiveComparison | None = None
+    """The best naive baseline against the best other detector (None: either is missing)."""
 
 
 SEVERITY_BINS: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -236,6 +223,7 @@ def auc_intervals(
     subsets.update(_severity_subsets(kinds, sub_kinds, episodes, severity or {}))
     auc: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
     diff: dict[str, dict[str, Interval]] = {m: {} for m in by_method}
+    naive_vs_best: NaiveComparison | None = None
     for key, keep in subsets.items():
         positive = ~normal[keep]
         weights = episode_draws(episodes[keep], positive, replicates, seed)
@@ -252,6 +240,8 @@ def auc_intervals(
             auc[m][key] = b.interval()
             if m in paired:
                 diff[m][key] = b.minus(ref_boots[paired[m]])
+        if key == "auc":
+            naive_vs_best = _naive_vs_best(boots)
     return RunIntervals(
         methods={m: MethodIntervals(auc[m], diff[m], paired.get(m, ())) for m in by_method},
         reference=reference if reference in by_method else None,
@@ -259,7 +249,22 @@ def auc_intervals(
         anomalous_episodes=len(set(episodes[~normal])),
         replicates=replicates,
         seed=seed,
+        naive_vs_best=naive_vs_best,
     )
+
+
+def _naive_vs_best(boots: Mapping[str, BootstrapAuc]) -> NaiveComparison | None:
+    """The naive baseline with the highest AUC against the other method with the highest AUC."""
+    naive = [m for m in boots if methods.spec(m).family == "naive"]
+    others = [m for m in boots if m not in naive]
+    if not naive or not others:
+        return None
+
+    def top(names: list[str]) -> str:
+        return max(names, key=lambda m: boots[m].value if math.isfinite(boots[m].value) else -math.inf)
+
+    low, high = top(naive), top(others)
+    return NaiveComparison(low, high, boots[low].minus(boots[high]))
 
 
 @dataclass(frozen=True)
@@ -284,6 +289,8 @@ class RunInfo:
     """The dev dataset every choice of the methods was made on (`describe_dev`); empty: none given."""
     dataset_fingerprint: str = ""
     """`benchmarks.dataset.dataset_fingerprint` of the evaluated dataset (what `compare` pairs runs by)."""
+    code_version: str = ""
+    """The code that made the run (`benchmarks.provenance.code_version`); empty: not recorded."""
 
 
 def _fmt(mean: float, std: float, pct: bool = True, with_std: bool = True) -> str:
@@ -315,65 +322,41 @@ def _auc_cell(intervals: RunIntervals | None, method: str, key: str) -> str | No
     return None if iv is None else format_interval(iv)
 
 
-def _resolve(name: str, available: Mapping[str, object]) -> list[str]:
-    """A table row's method(s): the name itself, or its early and late fusion variants."""
-    if name in available:
-        return [name]
-    return [n for n in (f"{name}-early", f"{name}-late") if n in available]
-
-
-def _row_label(name: str, label: str, method: str) -> str:
-    """A table row's label for `method`: the row's own, or with the fusion of its -early/-late variant."""
-    return label if method == name else f"{label} ({method.rsplit('-', 1)[1]} fusion)"
-
-
-def _table(
-    rows: Sequence[tuple[str, str]],
+def method_table(
+    rows: Rows,
     per_method: Mapping[str, Sequence[MethodMetrics]],
     columns: Sequence[tuple[str, str, bool]],
     intervals: RunIntervals | None = None,
 ) -> list[str]:
+    """A Markdown table of the `rows` the run has: one column per (key, header, percent) of `columns`, AUCs
+    with their intervals, and the paired difference against M-SVDD when the run has it (M-SVDD in bold)."""
     with_diff = intervals is not None and intervals.reference is not None
     headers = [c[1] for c in columns] + (list(_DIFF_HEADERS) if with_diff else [])
     lines = ["| Method | " + " | ".join(headers) + " |"]
     lines.append("|---|" + "---|" * len(headers))
-    for name, label in rows:
-        for method in _resolve(name, per_method):
-            agg = aggregate(per_method[method])
-            shown = _row_label(name, label, method)
-            cells = [
-                _auc_cell(intervals, method, key) or _fmt(*agg.get(key, (math.nan, 0.0)), pct=pct)
-                for key, _, pct in columns
-            ]
-            if with_diff:
-                assert intervals is not None
-                cells += _diff_cells(intervals, method, "auc")
-            lines.append(f"| {shown} | " + " | ".join(cells) + " |")
+    for method, label in rows:
+        if method not in per_method:
+            continue
+        agg = aggregate(per_method[method])
+        shown = f"**{label}**" if method == REFERENCE_METHOD else label
+        cells = [
+            _auc_cell(intervals, method, key) or _fmt(*agg.get(key, (math.nan, 0.0)), pct=pct)
+            for key, _, pct in columns
+        ]
+        if with_diff:
+            assert intervals is not None
+            cells += _diff_cells(intervals, method, "auc")
+        lines.append(f"| {shown} | " + " | ".join(cells) + " |")
     return lines
 
 
-_TABLES: tuple[tuple[tuple[str, str], ...], ...] = (
-    COMPARISON, MODULE_ABLATION, FUSION_ABLATION, LATENT_SWEEP, REFERENCE, NAIVE
-)  # fmt: skip
-"""Every fixed table of `results.md`; a method in none of them gets the "other methods" table."""
-
-PAPER_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
-    ("Table I", COMPARISON),
-    ("Table II", MODULE_ABLATION),
-    ("Table III", FUSION_ABLATION),
-    ("latent-s figure", LATENT_SWEEP),
-)
-"""The paper's tables (and its latent-dimension figure) that `results.md` reproduces, with their rows."""
-
-
-def paper_rows(method: str) -> list[str]:
-    """Where `method` appears in the paper, e.g. `["Table I: IF (early fusion)"]`; empty if nowhere."""
-    return [
-        f"{table}: {_row_label(name, label, method).replace('*', '')}"
-        for table, rows in PAPER_TABLES
-        for name, label in rows
-        if _resolve(name, {method: None}) == [method]
-    ]
+def _shown_in_tables(available: Iterable[str]) -> list[str]:
+    """The methods of `available` that a fixed table of `results.md` shows (a paper table, the reference or
+    the naive table); the rest get the "other methods" table."""
+    names = list(available)
+    shown = {m for table in PAPER_TABLES for m, _ in paper_table(table, names)}
+    shown |= {m for family in ("reference", "naive") for m, _ in family_table(family, names)}
+    return [m for m in names if m in shown]
 
 
 _DIFF_HEADERS: tuple[str, str] = ("ΔAUC vs M-SVDD (%)", "Δ interval excludes 0")
@@ -394,7 +377,7 @@ def _difference_table(
     return lines
 
 
-_MAIN_COLUMNS: tuple[tuple[str, str, bool], ...] = (
+MAIN_COLUMNS: tuple[tuple[str, str, bool], ...] = (
     ("recall", "Recall (%)", True),
     ("precision", "Precision (%)", True),
     ("f1", "F1 (%)", True),
@@ -405,29 +388,100 @@ _MAIN_COLUMNS: tuple[tuple[str, str, bool], ...] = (
     ("pauc", "pAUC (%)", True),
     ("delay_mean_s", "Delay (s)", False),
 )
-_SHORT_COLUMNS: tuple[tuple[str, str, bool], ...] = (
+SHORT_COLUMNS: tuple[tuple[str, str, bool], ...] = (
     ("recall", "Recall (%)", True),
     ("precision", "Precision (%)", True),
     ("f1", "F1 (%)", True),
     ("f1_oracle", "F1 oracle (%)", True),
     ("auc", "AUC (%)", True),
 )
+AUC_COLUMNS: tuple[tuple[str, str, bool], ...] = (
+    ("auc", "AUC (%)", True),
+    ("auc_collision", "AUC coll (%)", True),
+    ("auc_mechanical", "AUC mech (%)", True),
+)
+"""Table columns: (metric key, header, shown in percent); AUC cells get their interval when the run has
+one."""
 
 
-def naive_verdict(per_method: Mapping[str, Sequence[MethodMetrics]]) -> str:
-    """One sentence on whether the naive energy/kurtosis baselines solve the benchmark."""
-    found = {n: aggregate(per_method[n])["auc"][0] for n, _ in NAIVE if n in per_method}
+def _auc_text(intervals: RunIntervals | None, method: str, value: float) -> str:
+    """`method`'s overall AUC in percent, with its interval when the run has one."""
+    return _auc_cell(intervals, method, "auc") or f"{100 * value:.1f}"
+
+
+def naive_verdict(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
+) -> str:
+    """One sentence on whether the naive energy/kurtosis baselines solve the benchmark: the best of them
+    against the best other detector of the run, by the interval of their paired AUC difference ("level"
+    when it contains 0)."""
+    found = {n: aggregate(per_method[n])["auc"][0] for n, _ in family_table("naive", per_method)}
     if not found:
         return "The naive sanity baselines were not run."
-    best = max(found, key=lambda n: found[n])
-    text = ", ".join(f"{n} AUC {100 * v:.1f}%" for n, v in found.items())
-    if found[best] >= TOO_EASY_AUC:
+    text = ", ".join(f"{n} AUC {_auc_text(intervals, n, v)}" for n, v in found.items())
+    if max(found.values()) >= TOO_EASY_AUC:
         return (
             f"WARNING: a naive baseline scores well ({text}): on this data the benchmark is too easy, "
             "since window energy or kurtosis alone finds the anomalies."
         )
+    pair = intervals.naive_vs_best if intervals is not None else None
+    if pair is None:
+        return (
+            f"The naive baselines reach {text}; no other detector of this run has an interval to compare "
+            "them with, so the run does not say whether energy or kurtosis alone solves this benchmark."
+        )
+    best = aggregate(per_method[pair.best])["auc"][0]
+    both = f"{text}; best detector {pair.best} AUC {_auc_text(intervals, pair.best, best)}"
+    diff = f"{pair.naive} minus {pair.best}: {format_interval(pair.difference, signed=True)}"
+    excludes = excludes_zero(pair.difference)
+    if excludes is None:
+        return (
+            f"The naive baselines reach {text} ({both}); with this few test episodes the paired difference "
+            "has no interval, so the run does not say whether energy or kurtosis alone solves this benchmark."
+        )
+    if not excludes:
+        return (
+            f"The best naive baseline is level with the best detector of this run ({both}; {diff}, an "
+            "interval that contains 0): this test set does not tell window energy or kurtosis apart from "
+            "the best detector."
+        )
+    if pair.difference.value < 0:
+        return (
+            f"The naive baselines stay below the best detector of this run ({both}; {diff}), so energy or "
+            "kurtosis alone does not solve this benchmark."
+        )
     return (
-        f"The naive baselines stay low ({text}), so energy or kurtosis alone does not solve this benchmark."
+        f"WARNING: a naive baseline is ahead of every other detector of this run ({both}; {diff}): on this "
+        "data window energy or kurtosis alone beats the detectors."
+    )
+
+
+def ranking_note(intervals: RunIntervals | None) -> str:
+    """One line on whether this test set ranks the methods against M-SVDD: how many paired differences
+    contain 0 (or have no interval), out of how many."""
+    if intervals is None or intervals.reference is None:
+        return (
+            "**Ranking**: M-SVDD is not in this run, so there are no paired differences; AUCs whose "
+            "intervals overlap are not a ranking."
+        )
+    ref = intervals.reference
+    diffs = {m: mi.vs_reference.get("auc") for m, mi in intervals.methods.items() if m != ref}
+    unranked = [m for m, iv in diffs.items() if iv is None or excludes_zero(iv) is not True]
+    episodes = (
+        f"{intervals.normal_episodes} normal and {intervals.anomalous_episodes} anomalous test episodes"
+    )
+    ref_auc = _auc_cell(intervals, ref, "auc") or "n/a"
+    if not diffs:
+        return f"**Ranking**: only M-SVDD was run ({episodes}; AUC {ref_auc}): nothing to rank."
+    if unranked:
+        return (
+            f"**This test set cannot rank {len(unranked)} of the {len(diffs)} other methods against M-SVDD**"
+            f" ({episodes}; M-SVDD's AUC {ref_auc}): their paired difference's interval contains 0 or is "
+            "undefined, so only a row whose *excludes 0* says yes is ranked."
+        )
+    return (
+        f"**Ranking**: every one of the {len(diffs)} other methods' paired difference against M-SVDD "
+        f"excludes 0 on this test set ({episodes}; M-SVDD's AUC {ref_auc})."
     )
 
 
@@ -437,7 +491,7 @@ def _interval_notes(intervals: RunIntervals | None, n_seeds: int) -> list[str]:
         return [f"- Training seeds per method: {n_seeds} (mean ± std over seeds)"]
     lines = [
         f"- Training seeds per method: {n_seeds}. AUC cells are the mean over seeds with its "
-        f"{100 * CONFIDENCE:.0f} % interval, `84.0 [81.2, 86.5]`; other cells are mean ± std over seeds.",
+        f"{100 * CONFIDENCE:.0f} % interval, `AUC [low, high]`; other cells are mean ± std over seeds.",
         f"- Intervals: episode-cluster bootstrap ({intervals.replicates} replicates resampling whole test "
         f"episodes, {intervals.normal_episodes} normal and {intervals.anomalous_episodes} anomalous, each "
         "class separately; the same draws for every seed and every method; `benchmarks.uncertainty`)."
@@ -470,26 +524,24 @@ def _interval_notes(intervals: RunIntervals | None, n_seeds: int) -> list[str]:
     return lines
 
 
-def markdown(
-    info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
-) -> str:
-    """`results.md`: the paper's tables from this run's data (AUCs with intervals when given)."""
-    any_runs = next(iter(per_method.values()))
-    first = any_runs[0]
+_PAPER_SECTIONS: tuple[tuple[str, str, tuple[tuple[str, str, bool], ...]], ...] = (
+    ("Table II", "Module ablation (paper Table II)", SHORT_COLUMNS),
+    ("Table III", "Fusion ablation (paper Table III)", SHORT_COLUMNS),
+    ("latent-s figure", "Latent dimension s", SHORT_COLUMNS),
+)
+"""The ablation tables: paper table, heading, columns (each shown when the run has one of its ablations)."""
+
+
+def provenance_lines(
+    info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None
+) -> list[str]:
+    """The bullets under a run's title: command, machine, datasets, test windows, what the cells mean."""
+    first = next(iter(per_method.values()))[0]
     n_seeds = max(len(v) for v in per_method.values())
-    differences: list[str] = []
-    if intervals is not None and intervals.reference is not None:
-        differences = [
-            "## Paired AUC differences against M-SVDD (every method of the run)",
-            "",
-            *_difference_table(per_method, intervals),
-            "",
-        ]
-    out = [
-        f"# Results: preset `{info.preset}`, dataset seed {info.dataset_seed}",
-        "",
+    return [
         f"- Command: `{info.command}`",
-        f"- Date: {info.date}; machine: {info.machine}",
+        f"- Date: {info.date}; machine: {info.machine}"
+        + (f"; code: {info.code_version}" if info.code_version else ""),
         f"- Eval dataset: `{info.dataset}` (reported; fingerprint `{info.dataset_fingerprint or 'n/a'}`)."
         " Dev dataset: "
         + (f"{info.dev} (every choice a method makes)" if info.dev else "none given (built-in settings)"),
@@ -500,49 +552,78 @@ def markdown(
         f" {THRESHOLD_RULE}.",
         "  **F1 oracle** is the best F1 over the test precision-recall curve, the paper's protocol:"
         " it sees the test labels and is reported for comparison only.",
+    ]
+
+
+def result_tables(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, level: int = 2
+) -> list[str]:
+    """A run's tables, each under a heading of `level` (`results.md`; the docs generator nests them): the
+    comparison (its first line says whether the test set ranks), the ablations the run has, the reference
+    and naive detectors with the naive verdict, paired differences, AUCs by sub-kind and by severity."""
+    h = "#" * level
+    names = list(per_method)
+    out = [
+        f"{h} Comparison (paper Table I)",
         "",
-        "## Comparison (paper Table I)",
+        ranking_note(intervals),
         "",
-        *_table(COMPARISON, per_method, _MAIN_COLUMNS, intervals),
+        *method_table(paper_table("Table I", names), per_method, MAIN_COLUMNS, intervals),
         "",
-        *([SVDD_NOTE, ""] if _resolve("svdd", per_method) else []),
-        "## Module ablation (paper Table II)",
-        "",
-        *_table(MODULE_ABLATION, per_method, _SHORT_COLUMNS, intervals),
-        "",
-        "## Fusion ablation (paper Table III)",
-        "",
-        *_table(FUSION_ABLATION, per_method, _SHORT_COLUMNS, intervals),
-        "",
-        "## Latent dimension s",
-        "",
-        *_table(LATENT_SWEEP, per_method, _SHORT_COLUMNS, intervals),
-        "",
-        "## Reference detectors (densities of the inputs, no M-SVDD network: Gaussians on fixed window"
-        " statistics, the audit's; Gaussians and mixtures on the input frames, alone or given their"
-        " neighbours; the last row learns the log-mel frames' density given their neighbours)",
-        "",
-        *_table(REFERENCE, per_method, _MAIN_COLUMNS, intervals),
-        "",
-        "## Naive sanity baselines",
-        "",
-        *_table(NAIVE, per_method, _MAIN_COLUMNS, intervals),
-        "",
-        *_other_methods(per_method, intervals),
-        naive_verdict(per_method),
-        "",
-        *differences,
-        "## AUC (%) by anomaly sub-kind (comparison methods; every method's are in results.json)",
+        *([SVDD_NOTE, ""] if any(m.startswith("svdd-") for m in names) else []),
+    ]
+    for table, heading, columns in _PAPER_SECTIONS:
+        rows = paper_table(table, names)
+        if any(m != REFERENCE_METHOD for m, _ in rows):
+            out += [f"{h} {heading}", "", *method_table(rows, per_method, columns, intervals), ""]
+    reference = family_table("reference", names)
+    if reference:
+        out += [
+            f"{h} Reference detectors (densities of the inputs, no M-SVDD network)",
+            "",
+            *method_table(reference, per_method, MAIN_COLUMNS, intervals),
+            "",
+        ]
+    naive = family_table("naive", names)
+    if naive:
+        out += [
+            f"{h} Naive sanity baselines",
+            "",
+            *method_table(naive, per_method, MAIN_COLUMNS, intervals),
+            "",
+        ]
+    out += [*_other_methods(per_method, intervals, h), naive_verdict(per_method, intervals), ""]
+    if intervals is not None and intervals.reference is not None:
+        out += [
+            f"{h} Paired AUC differences against M-SVDD (every method of the run)",
+            "",
+            *_difference_table(per_method, intervals),
+            "",
+        ]
+    return [
+        *out,
+        f"{h} AUC (%) by anomaly sub-kind (comparison methods; every method's are in results.json)",
         "",
         *_sub_kind_table(per_method, intervals),
         "",
-        *_severity_table(per_method, intervals),
-        *_severity_by_kind_table(intervals),
+        *_severity_table(per_method, intervals, h),
+        *_severity_by_kind_table(intervals, h),
+    ]
+
+
+def markdown(
+    info: RunInfo, per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None = None
+) -> str:
+    """`results.md`: the paper's tables from this run's data (AUCs with intervals when given)."""
+    out = [
+        f"# Results: preset `{info.preset}`, dataset seed {info.dataset_seed}",
+        "",
+        *provenance_lines(info, per_method, intervals),
+        "",
+        *result_tables(per_method, intervals),
         "## Fit time",
         "",
-        "| Method | Fit (s) |",
-        "|---|---|",
-        *[f"| {m} | {s:.1f} |" for m, s in info.train_seconds.items()],
+        *fit_time_table(info.train_seconds),
         "",
         "ROC curves: `figures/roc_all.png`, `figures/roc_collision.png`, `figures/roc_mechanical.png`.",
         "",
@@ -550,18 +631,23 @@ def markdown(
     return "\n".join(out)
 
 
+def fit_time_table(train_seconds: Mapping[str, float]) -> list[str]:
+    """Mean fit time per method, s."""
+    return ["| Method | Fit (s) |", "|---|---|", *[f"| {m} | {s:.1f} |" for m, s in train_seconds.items()]]
+
+
 def _other_methods(
-    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, h: str = "##"
 ) -> list[str]:
     """A table of the methods no other table shows (detectors from outside the project), if any."""
-    shown = {m for rows in _TABLES for name, _ in rows for m in _resolve(name, per_method)}
+    shown = set(_shown_in_tables(per_method))
     others = [m for m in per_method if m not in shown]
     if not others:
         return []
     return [
-        "## Other methods (detectors from outside the project and unlisted registry methods)",
+        f"{h} Other methods (detectors from outside the project and unlisted registry methods)",
         "",
-        *_table([(m, f"`{m}`") for m in others], per_method, _MAIN_COLUMNS, intervals),
+        *method_table(tuple((m, f"`{m}`") for m in others), per_method, MAIN_COLUMNS, intervals),
         "",
     ]
 
@@ -569,7 +655,9 @@ def _other_methods(
 def _breakdown_methods(per_method: Mapping[str, Sequence[MethodMetrics]]) -> list[str]:
     """The comparison, reference and naive methods of the run, in table order: the columns of the
     sub-kind and severity tables."""
-    return [m for name, _ in (*COMPARISON, *REFERENCE, *NAIVE) for m in _resolve(name, per_method)]
+    names = list(per_method)
+    rows = (*paper_table("Table I", names), *family_table("reference", names), *family_table("naive", names))
+    return [m for m, _ in rows]
 
 
 def _sub_kind_table(
@@ -590,7 +678,7 @@ def _sub_kind_table(
 
 
 def _severity_table(
-    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, h: str = "##"
 ) -> list[str]:
     """Rows per fault-severity bin (every fault kind together), columns for the comparison, reference and
     naive methods; nothing when the run has no severities (a dataset of recordings) or no intervals."""
@@ -604,8 +692,8 @@ def _severity_table(
     if not labels:
         return []
     lines = [
-        "## Fault AUC (%) by fault severity (normal windows against the fault windows of episodes whose fault"
-        " severity is in the bin; every method's per fault kind in results.json)",
+        f"{h} Fault AUC (%) by fault severity (normal windows against the fault windows of episodes whose"
+        " fault severity is in the bin; every method's per fault kind in results.json)",
         "",
         "| Severity | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),
@@ -616,7 +704,7 @@ def _severity_table(
     return [*lines, ""]
 
 
-def _severity_by_kind_table(intervals: RunIntervals | None) -> list[str]:
+def _severity_by_kind_table(intervals: RunIntervals | None, h: str = "##") -> list[str]:
     """The paired-difference reference's fault AUC per fault kind (rows) and severity bin (columns), for
     the bins and kinds that hold fault windows; nothing without severities, intervals or reference."""
     reference = intervals.reference if intervals is not None else None
@@ -629,7 +717,7 @@ def _severity_by_kind_table(intervals: RunIntervals | None) -> list[str]:
     if not kinds:
         return []
     lines = [
-        f"## Fault AUC (%) of `{reference}` by fault kind and severity",
+        f"{h} Fault AUC (%) of `{reference}` by fault kind and severity",
         "",
         "| Fault kind | " + " | ".join(labels) + " |",
         "|---|" + "---|" * len(labels),
@@ -656,6 +744,7 @@ def results_json(
         "command": info.command,
         "machine": info.machine,
         "date": info.date,
+        "code_version": info.code_version or None,
         "dev": info.dev or None,
         "dataset_sha256": info.dataset_fingerprint or None,
         "oracle_note": "f1_oracle and threshold_oracle are chosen on test labels (oracle); every other "
@@ -692,7 +781,14 @@ def results_json(
             "reference": intervals.reference,
             "note": "a difference whose interval contains zero is not a ranking",
         }
-    doc["naive_verdict"] = naive_verdict(per_method)
+    if intervals is not None and intervals.naive_vs_best is not None:
+        pair = intervals.naive_vs_best
+        doc["naive_vs_best"] = {
+            "naive": pair.naive,
+            "best": pair.best,
+            "difference": {**pair.difference.to_dict(), "excludes_zero": excludes_zero(pair.difference)},
+        }
+    doc["naive_verdict"] = naive_verdict(per_method, intervals)
     return doc
 
 

@@ -22,6 +22,7 @@ from benchmarks.methods._io import write_text_atomic
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
+from benchmarks.provenance import code_version
 from benchmarks.report import RunInfo, write_report
 from benchmarks.resume import (
     TRAINING_FILE,
@@ -216,6 +217,7 @@ def _train_and_report(
         train_seconds=mean_train_seconds(models),
         dev=dev_text,
         dataset_fingerprint=dataset.fingerprint,
+        code_version=code_version(),
     )
     write_report(tmp, info, rows, scores, per_method, dataset.fault_severities())
 

@@ -33,6 +33,7 @@ def _run(args: argparse.Namespace) -> int:
     from benchmarks import methods
     from benchmarks.dataset import check_dev, open_dataset
     from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows
+    from benchmarks.provenance import code_version
     from benchmarks.report import RunInfo, write_report
     from benchmarks.resume import recorded_train_seconds
     from benchmarks.runner import machine_description, mean_train_seconds
@@ -61,6 +62,7 @@ def _run(args: argparse.Namespace) -> int:
         train_seconds=mean_train_seconds(models),
         dev=dev,
         dataset_fingerprint=dataset.fingerprint,
+        code_version=code_version(),
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{args.out.name}.partial-", dir=args.out.parent))

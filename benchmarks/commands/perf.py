@@ -8,6 +8,7 @@ import json
 import os
 import pkgutil
 import platform
+import sys
 import tempfile
 from pathlib import Path
 
@@ -57,6 +58,8 @@ def _run(args: argparse.Namespace) -> int:
     for stage in chosen:
         figures.update(stage.measure(bool(args.quick)))
         descriptions.update(stage.describe)
+    from benchmarks.provenance import code_version
+
     report = {
         "machine": {
             "platform": platform.platform(),
@@ -64,6 +67,9 @@ def _run(args: argparse.Namespace) -> int:
             "cpus": os.cpu_count(),
         },
         "quick": bool(args.quick),
+        "command": "msvdd-bench " + " ".join(sys.argv[1:]),
+        "code_version": code_version(),
+        "descriptions": {k: descriptions[k] for k in figures if k in descriptions},
         **figures,
     }
     target: Path = args.json

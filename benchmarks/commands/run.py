@@ -32,7 +32,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         nargs="+",
         default=None,
         help="methods to train, or groups: table1, ablations, all, or module:Class for a detector of your "
-        "own (importable; see README) (default: the preset's list)",
+        "own (importable; see docs/detectors.md) (default: the preset's list)",
     )
     p.add_argument("--data", type=Path, default=None, help="reuse this dataset instead of generating one")
     p.add_argument(

@@ -99,7 +99,7 @@ def markdown(result: SweepResult) -> str:
         f"- Command: `{result.command}`",
         f"- Executor: {result.executor}; wall time {result.seconds:.0f} s; {result.machine}; {result.date}.",
         f"- Cells: AUC (%) with its {100 * CONFIDENCE:.0f} % episode-cluster bootstrap interval, "
-        "`84.0 [81.2, 86.5]` (whole test episodes resampled, normal and anomalous separately: "
+        "`AUC [low, high]` (whole test episodes resampled, normal and anomalous separately: "
         + "; ".join(f"{n} normal and {a} anomalous episodes" for n, a in episodes)
         + "); `[n/a]`: too few episodes for an interval.",
         "- Each point is a complete run folder (`points/pNN-seedS/`: dataset, models, results.md); its "

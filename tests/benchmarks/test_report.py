@@ -10,12 +10,22 @@ import pytest
 
 from benchmarks import methods
 from benchmarks.dataset import WindowRow, open_dataset
-from benchmarks.metrics import compute_metrics
+from benchmarks.metrics import MethodMetrics, compute_metrics
 from benchmarks.pipeline import MethodScores, TrainedModel, score_and_measure, train_method
-from benchmarks.report import SVDD_NOTE, RunInfo, auc_intervals, markdown, results_json, write_report
+from benchmarks.report import (
+    SVDD_NOTE,
+    RunInfo,
+    RunIntervals,
+    auc_intervals,
+    markdown,
+    naive_verdict,
+    ranking_note,
+    results_json,
+    write_report,
+)
 from benchmarks.uncertainty import auc_interval
 
-INFO = RunInfo("tiny", 0, "data", "msvdd-bench run", "test machine", "2026-01-01", {})
+INFO = RunInfo("tiny", 0, "data", "msvdd-bench run", "test machine", "the test date", {})
 
 
 def _rows() -> list[WindowRow]:
@@ -223,3 +233,51 @@ def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
             == f"| {kind} | " + " | ".join(format_interval(auc[severity_key(b, kind)]) for b in bins) + " |"
         )
     assert len(lines) == 3
+
+
+def _run_of(shifts: dict[str, float]) -> tuple[dict[str, list[MethodMetrics]], RunIntervals]:
+    """Per-method metrics and intervals of methods whose anomalous windows are shifted by `shifts`."""
+    rows = _rows()
+    kinds = np.array([r.kind for r in rows])
+    scores = [_scores(rows, m, 0, shift) for m, shift in shifts.items()]
+    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
+    return per_method, auc_intervals(rows, scores, replicates=200)
+
+
+def test_naive_verdict_compares_the_best_naive_baseline_with_the_best_detector() -> None:
+    # Level: audio RMS scores every window as M-SVDD does, so their paired difference is 0 in every
+    # replicate and the verdict says "level", never "stay below".
+    rows = _rows()
+    kinds = np.array([r.kind for r in rows])
+    same = _scores(rows, "msvdd", 0, 0.6)
+    scores = [same, MethodScores("audio-rms", 0, same.scores.copy(), 0.5)]
+    level = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
+    run = auc_intervals(rows, scores, replicates=200)
+    assert run.naive_vs_best is not None and run.naive_vs_best.best == "msvdd"
+    assert run.naive_vs_best.difference.low == run.naive_vs_best.difference.high == 0.0
+    text = naive_verdict(level, run)
+    assert "level with the best detector" in text and "stay below" not in text
+    # Below: M-SVDD separates the classes, the naive baselines do not.
+    per_method, run = _run_of({"msvdd": 6.0, "audio-rms": 0.0, "imu-kurtosis": 0.0})
+    text = naive_verdict(per_method, run)
+    assert "stay below the best detector of this run" in text and "msvdd" in text
+    doc = results_json(INFO, per_method, run)
+    assert doc["naive_vs_best"]["best"] == "msvdd" and doc["naive_vs_best"]["difference"]["excludes_zero"]
+    assert doc["naive_verdict"] == text
+    # Without intervals nothing is claimed about solving the benchmark.
+    assert "does not say" in naive_verdict(per_method)
+
+
+def test_ranking_note_counts_the_differences_that_contain_zero() -> None:
+    per_method, run = _run_of({"msvdd": 0.5, "dae": 0.5, "audio-rms": 8.0})
+    note = ranking_note(run)
+    level = [
+        m for m, mi in run.methods.items()
+        if m != "msvdd" and mi.vs_reference["auc"].low <= 0.0 <= mi.vs_reference["auc"].high
+    ]
+    assert level == ["dae"]
+    assert note.startswith("**This test set cannot rank 1 of the 2 other methods against M-SVDD**")
+    text = markdown(INFO, per_method, run)
+    table1 = text.split("## Comparison (paper Table I)\n\n", 1)[1]
+    assert table1.startswith(note)  # the first line of the first table
+    assert ranking_note(None).startswith("**Ranking**: M-SVDD is not in this run")

@@ -20,10 +20,10 @@ window's distance is sqrt(2 (nll - floor)) of its least likely frame.
 
 Every constant was set before the network was first run, none tuned (`CROSS_NEIGHBOURS` = 2 is the frames'
 own `CONTEXT_NEIGHBOURS`). Where it is used was chosen on the dev dataset (seed 1) of the `paper` preset
-(README, "The detector"): the audio term of the reference `context-net-frames` and of `msvdd`, on the
+(docs/detectors.md): the audio term of the reference `context-net-frames` and of `msvdd`, on the
 normalised log-mel input frames given their neighbours; and `msvdd`'s IMU term, the IMU input frames given
-their neighbours and the log-mel frames around them (the audio context bought 0.7 [0.2, 1.1] AUC points on the
-dev set; the IMU context of the log-mel frames bought nothing, -0.1 [-0.2, +0.1]).
+their neighbours and the log-mel frames around them (on the dev set the audio context helped the IMU frames'
+density, an interval clear of zero; the IMU context did nothing for the log-mel frames').
 """
 
 from __future__ import annotations

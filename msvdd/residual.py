@@ -102,8 +102,8 @@ def fit_frame_gaussian(frames: torch.Tensor) -> FrameGaussian:
 
 
 MIXTURE_COMPONENTS = 16
-"""Components of a frame mixture (`rec_score="mixture"`, `mixture-frames`; chosen on the dev dataset among 1,
-4, 8, 16 and 32)."""
+"""Components of a frame mixture (`rec_score="mixture"`, the IMU density of `context-net-frames`; chosen on
+the dev dataset among 1, 4, 8, 16 and 32)."""
 MIXTURE_FRAMES = 60_000
 """Frames a `FrameMixture` is fitted on (a seeded sample of the training frames; all when there are fewer)."""
 MIXTURE_REG = 1e-3

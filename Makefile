@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 BENCH := $(VENV)/bin/msvdd-bench
 STAMP := $(VENV)/.installed
 
-.PHONY: venv test lint demo bench ablations perf viewer-shots clean
+.PHONY: venv test lint demo bench ablations perf docs viewer-shots clean
 
 venv: $(STAMP)
 
@@ -32,9 +32,10 @@ demo: $(STAMP)
 
 # The paper preset as two datasets from different seeds, both audited: dev (where every choice a method
 # makes is made) and eval (only reported); Table I is trained and scored on eval, then the fusion ablation of
-# `context-net-frames` (`terms`: its audio and IMU terms alone) is written to runs/paper-terms/. Hours on 2
-# cores: stopped, `make bench` again resumes (--resume reuses every model the stopped run finished; --reuse
-# prints an audit already made of the same dataset with the same code instead of running it again).
+# `context-net-frames` (`terms`: its audio and IMU terms alone) is written to runs/paper-terms/, and `make
+# docs` writes the results pages. Hours on 2 cores: stopped, `make bench` again resumes (--resume reuses
+# every model the stopped run finished; --reuse prints an audit already made of the same dataset with the
+# same code instead of running it again).
 bench: $(STAMP)
 	test -d runs/paper-dev || $(BENCH) generate --preset paper --seed 1 --out runs/paper-dev
 	test -d runs/paper-eval || $(BENCH) generate --preset paper --seed 2 --out runs/paper-eval
@@ -43,14 +44,24 @@ bench: $(STAMP)
 	$(BENCH) run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper --resume
 	$(BENCH) terms runs/paper/models/context-net-frames-seed* --data runs/paper-eval --no-progress \
 		--md runs/paper-terms/context-net-frames.md --json runs/paper-terms/context-net-frames.json
+	$(MAKE) docs
 
 # The module, fusion and latent ablations on the eval dataset that `make bench` generated.
 ablations: $(STAMP)
 	$(BENCH) run --preset paper --data runs/paper-eval --dev runs/paper-dev --out runs/paper-ablations \
 		--methods ablations --resume
+	$(MAKE) docs
 
 perf: $(STAMP)
 	$(BENCH) perf --stage all --json runs/perf.json
+
+# docs/results.md, the README's headline table and the method list of docs/detectors.md, from the results
+# files there are: `make bench`'s run (with the ablations and the speed figures when present), else `make
+# demo`'s. Every figure of the pages comes from those files (`msvdd-bench docs --help`).
+DOCS_RUNS ?= $(if $(wildcard runs/paper/results.json),runs/paper $(if $(wildcard runs/paper-ablations/results.json),runs/paper-ablations),runs/demo)
+DOCS_PERF ?= $(wildcard runs/perf.json)
+docs: $(STAMP)
+	$(BENCH) docs $(DOCS_RUNS) $(if $(DOCS_PERF),--perf $(DOCS_PERF))
 
 # Screenshots of the Rerun web viewer (headless Chromium, software rendering) of a collision and a fault
 # episode of `make demo`'s run, at 1440x900 and 1920x1080, into assets/screenshots/. Needs Chromium

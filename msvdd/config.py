@@ -9,10 +9,12 @@ from typing import Any, Self
 from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
-from msvdd.residual import MIXTURE_COMPONENTS
 
-REC_SCORES = ("mean", "peak", "mahalanobis", "mixture", "context", "fused")
+REC_SCORES = ("mean", "fused")
 """Allowed `rec_score` values."""
+RETIRED_FIELDS = ("rec_components",)
+"""Fields of earlier configurations that `from_dict` drops (the residual frame mixtures' size, which only the
+retired `rec_score` values "mixture" and "context" read)."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
 
@@ -49,17 +51,9 @@ class MSVDDConfig:
     """Weight of the scaled reconstruction loss in the anomaly score."""
     rec_score: str = "mean"
     """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
-    modalities), "peak" (per modality its largest per-time-step error over its training mean, summed) or
-    "mahalanobis" (per modality the largest Mahalanobis distance of a residual frame under a Gaussian of the
-    training residuals, `msvdd.residual`, over its training mean, summed), "mixture" (the same with a
-    Gaussian mixture of the training residuals, `msvdd.residual.FrameMixture`), "context" (the same with
-    the mixture of each residual frame given its neighbouring residual frames, `msvdd.context`) or "fused"
-    (per modality the largest distance of an input frame under a mixture density network of the training
-    input frames given its neighbours and, for the IMU of an audio-IMU model, the audio frames around it,
-    `msvdd.context_net`)."""
-    rec_components: int = MIXTURE_COMPONENTS
-    """Components of each modality's residual frame mixtures (`rec_score="mixture"` or `"context"` only; the
-    networks of `"fused"` have `msvdd.context_net.COMPONENTS`)."""
+    modalities) or "fused" (per modality the largest distance of an input frame under a mixture density
+    network of the training input frames given its neighbours and, for the IMU of an audio-IMU model, the
+    audio frames around it, over its training mean, summed; `msvdd.context_net`)."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4
@@ -104,7 +98,6 @@ class MSVDDConfig:
         _check(0 < self.nu <= 1, "nu", self.nu, "0 < nu <= 1")
         _check(self.w >= 0, "w", self.w, ">= 0")
         _check(self.rec_score in REC_SCORES, "rec_score", self.rec_score, " | ".join(REC_SCORES))
-        _check(self.rec_components >= 1, "rec_components", self.rec_components, ">= 1")
         _check(self.batch_size >= 2, "batch_size", self.batch_size, ">= 2")
         _check(self.lr > 0, "lr", self.lr, "> 0")
         _check(self.epochs >= 1, "epochs", self.epochs, ">= 1")
@@ -153,12 +146,12 @@ class MSVDDConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Self:
-        """Inverse of `to_dict`; unknown keys are an error naming them."""
+        """Inverse of `to_dict`; unknown keys are an error naming them (`RETIRED_FIELDS` are dropped)."""
         names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - names)
+        values = {k: v for k, v in data.items() if k not in RETIRED_FIELDS}
+        unknown = sorted(set(values) - names)
         if unknown:
             raise ValueError(f"unknown MSVDDConfig fields: {', '.join(unknown)}")
-        values = dict(data)
         if "alpha" in values:
             values["alpha"] = tuple(float(a) for a in values["alpha"])
         return cls(**values)

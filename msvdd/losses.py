@@ -6,13 +6,13 @@
 - `batch_statistics`: mu and Sigma of a batch by MCD: the support is chosen without gradient (FastMCD), then
   mu = mean of the support and Sigma = its 1/h covariance + eps I, both differentiable in z.
 
-What this loss can learn (measured, issue 11): over the support, the mean squared distance of a batch to its
-own estimate is exactly tr((S + eps I)^-1 S) = sum_k lambda_k / (lambda_k + eps), S the support covariance
-with eigenvalues lambda_k, whatever the embeddings are. It is about s for any batch that spreads in every
-direction, so its gradient carries no information about normality except one: sinking eigenvalues below
-eps lowers it. Trained this way the embeddings collapse onto a few directions (the paper configuration on
-the dev set: one eigenvalue of 0.95, 31 within 10 eps), and the covariance regulariser at alpha3 = 0.001 is
-too weak to stop it. `tests/msvdd/test_losses.py` checks the identity.
+What this loss can learn: over the support, the mean squared distance of a batch to its own estimate is
+exactly tr((S + eps I)^-1 S) = sum_k lambda_k / (lambda_k + eps), S the support covariance with eigenvalues
+lambda_k, whatever the embeddings are. It is about s for any batch that spreads in every direction, so its
+gradient carries no information about normality except one: sinking eigenvalues below eps lowers it. Trained
+this way the embeddings collapse onto a few directions (`msvdd-bench diagnose` shows the spectrum of Sigma of
+a trained model), and the covariance regulariser at alpha3 = 0.001 is too weak to stop it.
+`tests/msvdd/test_losses.py` checks the identity.
 """
 
 from __future__ import annotations
@@ -33,18 +33,6 @@ def huber_per_window(x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
     """(N,) mean Huber loss (delta 1) over all elements of each window."""
     err = F.huber_loss(x_hat, x, reduction="none", delta=1.0)
     return err.reshape(err.shape[0], -1).mean(dim=1)
-
-
-def peak_error(x: torch.Tensor, x_hat: torch.Tensor, time_axis: int, block: int = 1) -> torch.Tensor:
-    """(N,) the largest per-time-step Huber error (delta 1) of each window.
-
-    The error is averaged over everything but `time_axis` (channels, mel bands) and over blocks of `block`
-    consecutive time steps, then the maximum over the blocks is taken: a short transient the decoder cannot
-    reproduce stands out instead of being averaged over the window.
-    """
-    err = F.huber_loss(x_hat, x, reduction="none", delta=1.0).movedim(time_axis, 1)
-    steps = err.shape[1] // block
-    return err[:, : steps * block].reshape(err.shape[0], steps, -1).mean(dim=2).amax(dim=1)
 
 
 def reconstruction_loss(

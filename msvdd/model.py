@@ -2,10 +2,9 @@
 
 fit: z-score statistics from the training windows; train the network with
 alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
-and Sigma by MCD over the embeddings of the whole training split (with `rec_score="mahalanobis"` or
-`"mixture"` also the Gaussians or Gaussian mixtures of the training windows' residual frames,
-`msvdd.residual`; with `"fused"` the mixture density networks of the training windows' input frames,
-`msvdd.context_net`, their epochs chosen on the validation windows), the training means of D and Rec, and
+and Sigma by MCD over the embeddings of the whole training split (with `rec_score="fused"` also the mixture
+density networks of the training windows' input frames, `msvdd.context_net`, their epochs chosen on the
+validation windows), the training means of D and Rec, and
 the score delta = D + w (mean_D / mean_Rec) Rec, Rec the reconstruction term `rec_score` names; the
 threshold follows the rule of `msvdd.contract.Detector` (the `quantile` of the scores of held-out nominal
 windows). No test label is ever seen. With
@@ -29,7 +28,6 @@ import torch
 from torch import nn
 
 from msvdd.config import MSVDDConfig
-from msvdd.context import ContextMixture, fit_context_mixture
 from msvdd.context_net import ContextNet, fit_context_net
 from msvdd.contract import (
     Detector,
@@ -45,36 +43,23 @@ from msvdd.losses import (
     batch_statistics,
     covariance_regulariser,
     huber_per_window,
-    peak_error,
     reconstruction_loss,
     svdd_loss,
 )
 from msvdd.mcd import MCDError, mahalanobis, mahalanobis_sq, min_cov_det, support_size
 from msvdd.network import AUDIO_STRIDES, IMU_FRAME, FusionNet, NetOutput
-from msvdd.residual import (
-    FrameGaussian,
-    FrameMixture,
-    cut_frames,
-    fit_frame_gaussian,
-    fit_frame_mixture,
-    residual_frames,
-)
+from msvdd.residual import cut_frames
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
 FORMAT_VERSION = 3
 """Version of the file written by `MSVDD.save` (2: front-end choice and per-channel statistics, training
-history; 3: the residual frame densities of `rec_score="mahalanobis"` and `"mixture"`); `load` also reads
-versions 1 (the paper's waveform and z-velocity) and 2, refuses any other."""
+history; 3: the frame densities of the reconstruction term); `load` also reads versions 1 (the paper's
+waveform and z-velocity) and 2, refuses any other, and refuses a model of a retired `rec_score` by its
+config."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
-FRAME_DENSITY_SCORES = ("mahalanobis", "mixture", "context", "fused")
-"""`rec_score`s that fit a density of the training windows' frames after training: of the residual frames, or
-(`"fused"`) of the input frames."""
-FrameDensity = FrameGaussian | FrameMixture | ContextMixture | ContextNet
-"""A frame density: `FrameGaussian` ("mahalanobis"), `FrameMixture` ("mixture"), `ContextMixture`
-("context") or `ContextNet` ("fused")."""
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
-"""Waveform samples per audio token (180): the time step of the waveform's peak reconstruction error."""
+"""Waveform samples per audio token (180): the length of a waveform frame of the input."""
 
 
 @dataclass(frozen=True)
@@ -118,7 +103,7 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
-        self.rec_density_: list[FrameDensity] | None = None
+        self.rec_density_: list[ContextNet] | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
@@ -262,8 +247,6 @@ class MSVDD(Detector):
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
         if cfg.rec_score == "fused" and cfg.use_reconstruction:
             self.rec_density_ = self._fit_input_densities(train_t, val_t)
-        elif cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
-            self.rec_density_ = self._fit_residual_densities(train_t)
         d, parts = self._distance_and_parts(train_t)
         if cfg.rec_score != "mean" and parts.shape[1]:
             self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
@@ -288,43 +271,31 @@ class MSVDD(Detector):
 
     def _rec_pairs(
         self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor
-    ) -> list[tuple[torch.Tensor, torch.Tensor, int, int, int]]:
-        """(input, reconstruction, time axis, steps per "peak" error, steps per residual frame) of each
-        reconstructed modality: the audio's error is taken per token, the IMU's per sample or per token."""
+    ) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """(input, reconstruction) of each reconstructed modality, audio first."""
         cfg = self.config
         pairs = []
         if cfg.use_audio and out.audio_rec is not None:
-            logmel = cfg.audio_frontend == "logmel"
-            axis, token = (2, 1) if logmel else (1, AUDIO_SAMPLES_PER_TOKEN)
-            pairs.append((audio, out.audio_rec, axis, token, token))
+            pairs.append((audio, out.audio_rec))
         if cfg.use_imu and out.imu_rec is not None:
-            pairs.append((imu, out.imu_rec, 1, 1, IMU_FRAME))
+            pairs.append((imu, out.imu_rec))
         return pairs
 
     def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
-        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it."""
+        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it: the mean
+        Huber error of the window ("mean"), or the largest input-frame distance under its density network
+        ("fused")."""
         if self.config.rec_score == "fused":
             frames = self.input_frames(audio, imu)
-            nets = [g for g in self.rec_density_ or [] if isinstance(g, ContextNet)]
+            nets = self.rec_density_ or []
             if len(nets) != len(frames):
                 raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
             return [g.peak_distance(f, _cross(g, frames)) for g, f in zip(nets, frames, strict=True)]
-        pairs = self._rec_pairs(out, audio, imu)
-        if self.config.rec_score == "mean":
-            return [huber_per_window(x, x_hat) for x, x_hat, *_ in pairs]
-        if self.config.rec_score == "peak":
-            return [peak_error(x, x_hat, axis, block) for x, x_hat, axis, block, _ in pairs]
-        if self.rec_density_ is None or len(self.rec_density_) != len(pairs):
-            raise NotFittedError("MSVDD is not fitted: its frame densities are missing")
-        return [
-            g.peak_distance(residual_frames(x, x_hat, axis, frame))
-            for g, (x, x_hat, axis, _, frame) in zip(self.rec_density_, pairs, strict=True)
-        ]
+        return [huber_per_window(x, x_hat) for x, x_hat in self._rec_pairs(out, audio, imu)]
 
     def input_frames(self, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
-        """(N, T, p) frames of each used modality's normalised input, audio first, cut as the residual
-        frames of `rec_parts` are (a log-mel frame of both channels, or 180 waveform samples of both; 8 IMU
-        samples of every axis)."""
+        """(N, T, p) frames of each used modality's normalised input, audio first, one per token (a log-mel
+        frame of both channels, or 180 waveform samples of both; 8 IMU samples of every axis)."""
         cfg = self.config
         frames = []
         if cfg.use_audio:
@@ -338,14 +309,14 @@ class MSVDD(Detector):
 
     def _fit_input_densities(
         self, train_t: tuple[torch.Tensor, torch.Tensor], val_t: tuple[torch.Tensor, torch.Tensor] | None
-    ) -> list[FrameDensity]:
+    ) -> list[ContextNet]:
         """`rec_score="fused"`: a `ContextNet` of each used modality's input frames given its neighbours; the
         IMU's also given the audio frames around it when both modalities are used (`msvdd.context_net`)."""
         device = self.device
         train = self.input_frames(train_t[0].to(device), train_t[1].to(device))
         val = None if val_t is None else self.input_frames(val_t[0].to(device), val_t[1].to(device))
         seed = self.config.seed
-        densities: list[FrameDensity] = []
+        densities: list[ContextNet] = []
         for m, frames in enumerate(train):
             v = None if val is None else val[m]
             cross = None
@@ -353,25 +324,6 @@ class MSVDD(Detector):
                 cross = (train[0], None if val is None else val[0])
             densities.append(fit_context_net(frames, v, seed, cross=cross))
         return densities
-
-    def _fit_residual_densities(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> list[FrameDensity]:
-        """One density of the residual frames of `tensors` per reconstructed modality (`FrameDensity`)."""
-        frames: list[list[torch.Tensor]] = []
-        with torch.inference_mode():
-            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
-                a, i = a.to(self.device), i.to(self.device)
-                pairs = self._rec_pairs(self.module.net(a, i), a, i)
-                frames = frames or [[] for _ in pairs]
-                for store, (x, x_hat, axis, _, frame) in zip(frames, pairs, strict=True):
-                    store.append(residual_frames(x, x_hat, axis, frame))
-        cfg = self.config
-        windows = [torch.cat(f) for f in frames]  # (N, T, p) per modality
-        if cfg.rec_score == "context":
-            return [fit_context_mixture(w, cfg.rec_components, cfg.seed) for w in windows]
-        flat = [w.reshape(-1, w.shape[2]) for w in windows]
-        if cfg.rec_score == "mixture":
-            return [fit_frame_mixture(f, cfg.rec_components, cfg.seed) for f in flat]
-        return [fit_frame_gaussian(f) for f in flat]
 
     def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
@@ -501,14 +453,8 @@ class MSVDD(Detector):
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
-        if model.config.rec_score in FRAME_DENSITY_SCORES and model.config.use_reconstruction:
-            density: type[FrameGaussian] | type[FrameMixture] | type[ContextMixture] | type[ContextNet] = {
-                "mahalanobis": FrameGaussian,
-                "mixture": FrameMixture,
-                "context": ContextMixture,
-                "fused": ContextNet,
-            }[model.config.rec_score]
-            model.rec_density_ = [density.from_state(g, model.device) for g in payload["rec_gauss"]]
+        if model.config.rec_score == "fused" and model.config.use_reconstruction:
+            model.rec_density_ = [ContextNet.from_state(g, model.device) for g in payload["rec_gauss"]]
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)

@@ -14,10 +14,9 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
 4. D = ||L^-1 (z - mu)||, L the Cholesky factor of the fitted Sigma (L^-1 stored: the inverse covariance as
    Sigma^-1 = L^-T L^-1), in float64 like `msvdd.mcd.mahalanobis`; the Euclidean ablation stores mu = c and
    L^-1 = I.
-5. The reconstruction term (mean or peak Huber error per modality, or the largest distance of a residual
-   frame under the model's `msvdd.residual.FrameGaussian` or `FrameMixture`, or given its neighbours under its
-   `msvdd.context.ContextMixture`, or of an input frame under its `msvdd.context_net.ContextNet`, over
-   `rec_scale_`, summed) and delta = D + w (mean_D / mean_Rec) Rec, in float64.
+5. The reconstruction term (the mean Huber error per modality, or the largest distance of an input frame
+   under the model's `msvdd.context_net.ContextNet`, over `rec_scale_`, summed) and
+   delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
 ONNX Runtime session at batch 1:
@@ -51,14 +50,13 @@ import torch.nn.functional as F
 from scipy import signal
 from torch import nn
 
-from msvdd.context import ContextMixture, context_nll
 from msvdd.context_net import ContextNet
 from msvdd.contract import AUDIO_RATE
 from msvdd.frontend import LOGMEL_F_MIN, LOGMEL_HOP, LOGMEL_N_FFT, LOGMEL_N_MELS
 from msvdd.logmel import LOG_MEL_FLOOR, mel_filterbank
-from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, FRAME_DENSITY_SCORES, MSVDD, NotFittedError
+from msvdd.model import AUDIO_SAMPLES_PER_TOKEN, MSVDD, NotFittedError
 from msvdd.network import IMU_FRAME, AudioDecoder, AudioEncoder
-from msvdd.residual import FrameMixture, cut_frames, mixture_peak_distance, residual_frames
+from msvdd.residual import cut_frames
 
 
 def _f32(x: np.ndarray) -> torch.Tensor:
@@ -323,19 +321,6 @@ def huber(x: torch.Tensor, x_hat: torch.Tensor) -> torch.Tensor:
     return clipped * (err - 0.5 * clipped)
 
 
-def block_peak(err: torch.Tensor, time_axis: int, block: int) -> torch.Tensor:
-    """(N,) the largest mean of `err` over `block` consecutive time steps and every other axis but the batch
-    (as `msvdd.losses.peak_error`, without moving the time axis)."""
-    steps = err.shape[time_axis] // block
-    if steps * block != err.shape[time_axis]:
-        err = err.narrow(time_axis, 0, steps * block)
-    shape = [-1, *err.shape[1:]]
-    shape[time_axis : time_axis + 1] = [steps, block]
-    blocks = err.reshape(shape)
-    others = [d for d in range(1, blocks.dim()) if d != time_axis]
-    return blocks.mean(dim=others).amax(dim=1)
-
-
 class ScoreGraph(nn.Module):
     """A fitted `MSVDD`'s scoring path: (audio, imu[, imu6]) float32 windows -> (N,) float64 delta.
 
@@ -391,48 +376,14 @@ class ScoreGraph(nn.Module):
         self.register_buffer("mu", model.mu_.detach().cpu().to(torch.float64).reshape(1, -1))
         self.register_buffer("whiten", torch.linalg.solve_triangular(chol, eye, upper=False).T.contiguous())
         self.register_buffer("rec_scale", _f64(np.asarray(model.rec_scale_, dtype=np.float64)))
-        # The residual frame densities, audio then IMU where both are reconstructed (as `MSVDD.rec_parts`).
-        self.frame_mean = nn.ParameterDict()
-        self.frame_whiten = nn.ParameterDict()
-        self.frame_log_weights = nn.ParameterDict()
-        self.frame_precision_cholesky = nn.ParameterDict()
-        # `rec_score="context"`: the joint mixture in the frame_* fields, the context's mixture and projection
-        # in these, with each modality's floor and number of neighbours.
-        self.context_log_weights = nn.ParameterDict()
-        self.context_means = nn.ParameterDict()
-        self.context_precision_cholesky = nn.ParameterDict()
-        self.context_center = nn.ParameterDict()
-        self.context_basis = nn.ParameterDict()
-        self.context_floor: dict[str, float] = {}
-        self.context_neighbours: dict[str, int] = {}
         # `rec_score="fused"`: each modality's input-frame density network (`msvdd.context_net.ContextNet`).
         self.frame_nets = nn.ModuleDict()
-        if cfg.rec_score in FRAME_DENSITY_SCORES and cfg.use_reconstruction:
+        if cfg.rec_score == "fused" and cfg.use_reconstruction:
             if model.rec_density_ is None:
-                raise NotFittedError("MSVDD is not fitted: its residual frame densities are missing")
-            decoders = (("audio", self.audio_decoder), ("imu", self.imu_decoder))
-            names = [name for name, decoder in decoders if decoder is not None]
-            for name, g in zip(names, model.rec_density_, strict=True):
-                if isinstance(g, ContextNet):
-                    self.frame_nets[name] = copy.deepcopy(g).cpu().eval()
-                elif isinstance(g, ContextMixture):
-                    self.frame_log_weights[name] = _constant(g.joint.log_weights)
-                    self.frame_mean[name] = _constant(g.joint.means)
-                    self.frame_precision_cholesky[name] = _constant(g.joint.precision_cholesky)
-                    self.context_log_weights[name] = _constant(g.context.log_weights)
-                    self.context_means[name] = _constant(g.context.means)
-                    self.context_precision_cholesky[name] = _constant(g.context.precision_cholesky)
-                    self.context_center[name] = _constant(g.center)
-                    self.context_basis[name] = _constant(g.basis)
-                    self.context_floor[name] = g.floor
-                    self.context_neighbours[name] = g.neighbours
-                elif isinstance(g, FrameMixture):
-                    self.frame_log_weights[name] = _constant(g.log_weights)
-                    self.frame_mean[name] = _constant(g.means)
-                    self.frame_precision_cholesky[name] = _constant(g.precision_cholesky)
-                else:
-                    self.frame_mean[name] = _constant(g.mean)
-                    self.frame_whiten[name] = _constant(g.whiten)
+                raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
+            names = [name for name, used in (("audio", cfg.use_audio), ("imu", cfg.use_imu)) if used]
+            for name, density in zip(names, model.rec_density_, strict=True):
+                self.frame_nets[name] = copy.deepcopy(density).cpu().eval()
         mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 
@@ -453,57 +404,16 @@ class ScoreGraph(nn.Module):
         channels = torch.cat([imu.unsqueeze(1), imu6.transpose(1, 2)], dim=1)
         return self.imu_smoother(channels.unsqueeze(2)).flatten(2).transpose(1, 2)
 
-    def frame_distance(self, name: str, frames: torch.Tensor) -> torch.Tensor:
-        """(N,) largest distance of the residual frames (N, T, p) of modality `name`: Mahalanobis under the
-        frame Gaussian, the mixture's `msvdd.residual.mixture_peak_distance`, or sqrt(2 (nll - floor)) of the
-        frames given their neighbours (`msvdd.context.ContextMixture.peak_distance`)."""
-        if self.rec_score == "context":
-            nll = context_nll(
-                frames,
-                self.context_neighbours[name],
-                self.context_center[name],
-                self.context_basis[name],
-                (self.frame_log_weights[name], self.frame_mean[name], self.frame_precision_cholesky[name]),
-                (
-                    self.context_log_weights[name],
-                    self.context_means[name],
-                    self.context_precision_cholesky[name],
-                ),
-            )
-            return torch.sqrt(2.0 * (nll.amax(dim=1) - self.context_floor[name]).clamp_min(0.0))
-        if self.rec_score == "mixture":
-            return mixture_peak_distance(
-                frames,
-                self.frame_log_weights[name],
-                self.frame_mean[name],
-                self.frame_precision_cholesky[name],
-            )
-        y = (frames.to(torch.float64) - self.frame_mean[name]) @ self.frame_whiten[name]
-        return torch.sqrt((y * y).sum(dim=2)).amax(dim=1)
-
     def audio_error(self, a: torch.Tensor, a_rec: torch.Tensor) -> torch.Tensor:
-        """(N,) reconstruction error of the audio input, as `MSVDD.rec_parts` measures it."""
-        if self.rec_score in FRAME_DENSITY_SCORES:
-            if self.logmel_input:  # (N, 2, T, M): frames of both channels' bands
-                return self.frame_distance("audio", residual_frames(a, a_rec, 2, 1))
-            # (N, 2, 1, L) -> (N, L, 2), the model's layout: frames of 180 samples of both channels
-            x, x_rec = a.squeeze(2).transpose(1, 2), a_rec.squeeze(2).transpose(1, 2)
-            return self.frame_distance("audio", residual_frames(x, x_rec, 1, AUDIO_SAMPLES_PER_TOKEN))
-        err = huber(a, a_rec)  # log-mel (N, 2, T, M) or waveform (N, 2, 1, L)
-        if self.rec_score == "mean":
-            return err.mean(dim=(1, 2, 3))
-        if self.logmel_input:
-            return block_peak(err, 2, 1)
-        return block_peak(err, 3, AUDIO_SAMPLES_PER_TOKEN)
+        """(N,) mean Huber error of the audio input (log-mel (N, 2, T, M) or waveform (N, 2, 1, L)), as
+        `MSVDD.rec_parts` measures it."""
+        return huber(a, a_rec).mean(dim=(1, 2, 3))
 
     def imu_error(self, i: torch.Tensor, i_rec: torch.Tensor) -> torch.Tensor:
-        """(N,) reconstruction error of the IMU input, as `MSVDD.rec_parts` measures it."""
-        if self.rec_score in FRAME_DENSITY_SCORES:
-            return self.frame_distance("imu", residual_frames(i, i_rec, 1, IMU_FRAME))
-        err = huber(i, i_rec)  # (N, 400) or (N, 400, 7)
-        if self.rec_score == "mean":
-            return err.mean(dim=tuple(range(1, err.dim())))
-        return (err.mean(dim=2) if err.dim() == 3 else err).amax(dim=1)
+        """(N,) mean Huber error of the IMU input ((N, 400) or (N, 400, 7)), as `MSVDD.rec_parts` measures
+        it."""
+        err = huber(i, i_rec)
+        return err.mean(dim=tuple(range(1, err.dim())))
 
     def input_term(self, a: torch.Tensor | None, i: torch.Tensor | None) -> torch.Tensor:
         """(N,) `rec_score="fused"`'s term: each used modality's largest input-frame distance under its

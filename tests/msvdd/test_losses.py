@@ -10,7 +10,6 @@ from msvdd.losses import (
     batch_statistics,
     covariance_regulariser,
     huber_per_window,
-    peak_error,
     reconstruction_loss,
     svdd_loss,
 )
@@ -89,20 +88,3 @@ def test_batch_mahalanobis_depends_only_on_the_spectrum_against_eps() -> None:
     assert expected < 0.5  # scale 1e-4: variances 1e-8 << eps, the loss term is nearly 0
 
 
-def test_peak_error_finds_a_transient_the_mean_dilutes() -> None:
-    x = torch.zeros(2, 400, 7)
-    x_hat = x.clone()
-    x_hat[1, 123, 2] = 0.7  # one sample of one channel: Huber 0.5 * 0.49
-    peak = peak_error(x, x_hat, time_axis=1)
-    assert float(peak[0]) == 0.0
-    assert float(peak[1]) == pytest.approx(0.5 * 0.49 / 7)  # averaged over channels, max over time
-    assert float(huber_per_window(x, x_hat)[1]) == pytest.approx(0.5 * 0.49 / (400 * 7))
-    # Blocks: the waveform's 180-sample steps; log-mel's time axis is 2 of (N, 2, T, M).
-    wave = torch.zeros(1, 8820, 2)
-    wave_hat = wave.clone()
-    wave_hat[0, 200:380, :] = 0.5
-    assert float(peak_error(wave, wave_hat, 1, block=180)) == pytest.approx(0.5 * 0.25 * 160 / 180)
-    mel = torch.zeros(1, 2, 67, 32)
-    mel_hat = mel.clone()
-    mel_hat[0, :, 10, :] = 2.0  # Huber beyond delta: 2 - 0.5
-    assert float(peak_error(mel, mel_hat, 2)) == pytest.approx(1.5)

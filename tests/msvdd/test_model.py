@@ -9,17 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from scipy.spatial.distance import mahalanobis
-from sklearn.covariance import LedoitWolf
 from sklearn.metrics import roc_auc_score
-from sklearn.mixture import GaussianMixture
 
 from msvdd.config import MSVDDConfig
-from msvdd.context import ContextMixture, fit_context_mixture
 from msvdd.context_net import ContextNet, fit_context_net
 from msvdd.contract import Detector, ModelFormatError, WindowError, Windows
 from msvdd.model import FORMAT_VERSION, MSVDD, NotFittedError
-from msvdd.residual import FrameGaussian, FrameMixture
 from msvdd.synthetic import toy_windows
 
 
@@ -222,126 +217,6 @@ def test_all_imu_axes_need_imu6(toy_train: Windows) -> None:
         MSVDD(MSVDDConfig.smoke(epochs=1, imu_input="all")).fit(bare)
 
 
-def test_peak_reconstruction_score_is_in_units_of_training_means(
-    toy_train: Windows, toy_test: tuple[Windows, np.ndarray]
-) -> None:
-    cfg = MSVDDConfig.smoke(
-        epochs=1, audio_frontend="logmel", imu_input="all", rec_score="peak", w=1.0, val_fraction=0.0
-    )
-    model = MSVDD(cfg).fit(toy_train)
-    # Each modality's peak error divided by its training mean: on the training windows the term averages
-    # one per modality, two in all.
-    _, rec = model.score_components(toy_train)
-    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
-    assert model.rec_scale_.shape == (2,) and np.all(model.rec_scale_ > 0)
-    d, rec = model.score_components(toy_test[0])
-    np.testing.assert_allclose(model.score(toy_test[0]), d + (model.mean_d_ / model.mean_rec_) * rec)
-
-
-def _imu_residual_frames(model: MSVDD, batch: Windows) -> np.ndarray:
-    """(N, 50, 56) float64: the IMU residual x - x_hat of `batch` cut into 8-sample frames of 7 axes."""
-    a, i = model._tensors(batch)
-    with torch.inference_mode():
-        out = model.module.net(a, i)
-    assert out.imu_rec is not None
-    return (i - out.imu_rec).reshape(len(batch), 50, 56).numpy().astype(np.float64)
-
-
-def test_mahalanobis_reconstruction_term_by_hand(
-    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
-) -> None:
-    cfg = MSVDDConfig.smoke(
-        epochs=1, audio_frontend="logmel", imu_input="all", rec_score="mahalanobis", w=1.0, val_fraction=0.0
-    )
-    model = MSVDD(cfg).fit(toy_train)
-    # One Gaussian per modality: a log-mel frame is 2 channels x 32 bands, an IMU frame 8 samples x 7 axes.
-    assert model.rec_density_ is not None
-    assert [g.mean.shape[0] for g in model.rec_density_ if isinstance(g, FrameGaussian)] == [64, 56]
-    _, rec = model.score_components(toy_train)  # each modality in units of its training mean
-    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
-
-    # The IMU's term by hand: the residual's 8-sample frames of the training windows, scikit-learn's
-    # Ledoit-Wolf covariance, scipy's Mahalanobis distance, the largest over each window's frames.
-    peer = LedoitWolf().fit(_imu_residual_frames(model, toy_train).reshape(-1, 56))
-    precision = np.linalg.inv(peer.covariance_)
-    test = toy_test[0].subset(slice(0, 4))
-    want = [
-        max(mahalanobis(f, peer.location_, precision) for f in w) for w in _imu_residual_frames(model, test)
-    ]
-    _, parts = model._distance_and_parts(model._tensors(test))
-    np.testing.assert_allclose(parts[:, 1], want, rtol=1e-5)
-    # Persistence, and a file without the Gaussians is refused naming the field.
-    path = tmp_path / "m.pt"
-    model.save(path)
-    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
-    payload = torch.load(path, weights_only=True)
-    del payload["rec_gauss"]
-    torch.save(payload, path)
-    with pytest.raises(ModelFormatError, match="field 'rec_gauss' is missing"):
-        MSVDD.load(path)
-
-
-def test_mixture_reconstruction_term_by_hand(
-    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
-) -> None:
-    cfg = MSVDDConfig.smoke(
-        epochs=1,
-        audio_frontend="logmel",
-        imu_input="all",
-        rec_score="mixture",
-        rec_components=3,
-        val_fraction=0.0,
-    )
-    model = MSVDD(cfg).fit(toy_train)
-    assert model.rec_density_ is not None
-    assert [tuple(m.means.shape) for m in model.rec_density_ if isinstance(m, FrameMixture)] == [
-        (3, 64),
-        (3, 56),
-    ]
-    _, rec = model.score_components(toy_train)  # each modality in units of its training mean
-    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
-
-    # The IMU's term by hand: scikit-learn's mixture of the residual's 8-sample frames of the training
-    # windows (same seed), its score_samples, and sqrt(2 (largest nll - floor)), the floor being the
-    # smallest nll any component's peak gives.
-    peer = GaussianMixture(3, covariance_type="full", reg_covar=1e-3, random_state=cfg.seed)
-    peer.fit(_imu_residual_frames(model, toy_train).reshape(-1, 56))
-    log_peaks = [np.log(np.diag(p)).sum() - 28 * np.log(2 * np.pi) for p in peer.precisions_cholesky_]
-    test = toy_test[0].subset(slice(0, 4))
-    nll = (-peer.score_samples(_imu_residual_frames(model, test).reshape(-1, 56))).reshape(4, 50).max(axis=1)
-    _, parts = model._distance_and_parts(model._tensors(test))
-    np.testing.assert_allclose(parts[:, 1], np.sqrt(2 * (nll + max(log_peaks))), rtol=1e-6)
-    path = tmp_path / "m.pt"
-    model.save(path)
-    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
-
-
-def test_context_reconstruction_term_by_hand(
-    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
-) -> None:
-    cfg = MSVDDConfig.smoke(
-        epochs=1,
-        audio_frontend="logmel",
-        imu_input="all",
-        rec_score="context",
-        rec_components=2,
-        val_fraction=0.0,
-    )
-    model = MSVDD(cfg).fit(toy_train)
-    assert model.rec_density_ is not None and all(isinstance(m, ContextMixture) for m in model.rec_density_)
-    # The IMU's term by hand: the conditional mixture (`msvdd.context`, tested against the Gaussian
-    # conditional there) of the training windows' residual frames, fitted with the model's seed; each test
-    # window's largest conditional distance.
-    peer = fit_context_mixture(torch.from_numpy(_imu_residual_frames(model, toy_train)), 2, cfg.seed)
-    test = toy_test[0].subset(slice(0, 4))
-    _, parts = model._distance_and_parts(model._tensors(test))
-    want = peer.peak_distance(torch.from_numpy(_imu_residual_frames(model, test))).numpy()
-    np.testing.assert_allclose(parts[:, 1], want, rtol=1e-6)
-    path = tmp_path / "m.pt"
-    model.save(path)
-    np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
-
-
 def test_fused_term_by_hand(toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path) -> None:
     cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", rec_score="fused")
     model = MSVDD(cfg).fit(toy_train, toy_train.subset(slice(0, 16)))
@@ -359,15 +234,30 @@ def test_fused_term_by_hand(toy_train: Windows, toy_test: tuple[Windows, np.ndar
     _, parts = model._distance_and_parts(model._tensors(test))
     np.testing.assert_allclose(parts[:, 1], peer.peak_distance(frames[1], frames[0]).numpy(), rtol=1e-6)
     np.testing.assert_allclose(parts[:, 0], audio_net.peak_distance(frames[0]).numpy(), rtol=1e-6)
+    _, rec = model.score_components(toy_train)  # each modality in units of its training mean
+    assert float(rec.mean()) == pytest.approx(2.0, rel=1e-6)
+    # Persistence, and a file without the networks is refused naming the field.
     path = tmp_path / "m.pt"
     model.save(path)
     np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
+    payload = torch.load(path, weights_only=True)
+    del payload["rec_gauss"]
+    torch.save(payload, path)
+    with pytest.raises(ModelFormatError, match="field 'rec_gauss' is missing"):
+        MSVDD.load(path)
+
+
+def test_retired_reconstruction_terms_are_refused_and_their_size_field_dropped() -> None:
+    with pytest.raises(ValueError, match=r"rec_score = 'mixture'; allowed: mean \| fused"):
+        MSVDDConfig(rec_score="mixture")
+    saved = {**MSVDDConfig.smoke().to_dict(), "rec_components": 16}  # a model saved before the retirement
+    assert MSVDDConfig.from_dict(saved) == MSVDDConfig.smoke()
 
 
 def test_the_reconstruction_term_is_chosen_after_training(toy_train: Windows) -> None:
-    # `rec_score` changes scoring only: training "mixture" gives the network and D that "mahalanobis" gives.
+    # `rec_score` changes scoring only: training "fused" gives the network and D that "mean" gives.
     cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", val_fraction=0.0)
-    a = MSVDD(dataclasses.replace(cfg, rec_score="mahalanobis")).fit(toy_train)
-    b = MSVDD(dataclasses.replace(cfg, rec_score="mixture", rec_components=2)).fit(toy_train)
+    a = MSVDD(dataclasses.replace(cfg, rec_score="mean")).fit(toy_train)
+    b = MSVDD(dataclasses.replace(cfg, rec_score="fused")).fit(toy_train)
     batch = toy_train.subset(slice(0, 8))
     np.testing.assert_array_equal(a.score_components(batch)[0], b.score_components(batch)[0])

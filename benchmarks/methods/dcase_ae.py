@@ -82,14 +82,11 @@ class DcaseAEConfig:
 
     @classmethod
     def for_scale(cls, seed: int, scale: str, device: str = "cpu") -> DcaseAEConfig:
-        """smoke 5 epochs (under a second on the tests' 80 windows), short 20, full 20 (DCASE: 100).
+        """smoke 5 epochs (the tests' few windows), short 20, full 20 (DCASE: 100).
 
         Why not DCASE's 100 epochs: a full-scale training set holds ~5000 windows, ~315 000 frame vectors,
-        615 steps of 512 per epoch. Measured on one thread of the shared 2-core VM with another job running
-        (random data): 10-19 ms per step, and a fit on 500 windows 0.8 s per epoch plus 2.3 s of log-mel
-        and scoring. At 5000 windows that is ~8 s per epoch, so 20 epochs (~12 000 Adam steps) take ~3 min
-        on one core and about 2 min on two, where 100 epochs would take 13-20 min. short (~500 windows):
-        ~20 s; smoke (80 windows): ~0.6 s.
+        615 steps of 512 per epoch, so 20 epochs are already ~12 000 Adam steps, and 100 would take five
+        times as long on a CPU (`make bench` trains it with three seeds).
         """
         check_scale(scale)
         epochs = {"smoke": 5, "short": 20, "full": 20}[scale]

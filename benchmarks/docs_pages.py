@@ -162,11 +162,13 @@ def headline_block(run: RunResults) -> str:
     names = list(run.per_method)
     rows = (*paper_table("Table I", names), *family_table("reference", names), *family_table("naive", names))
     seeds = max(len(v) for v in run.per_method.values())
+    trained = "one training seed" if seeds == 1 else f"{seeds} training seeds"
     return "\n".join(
         [
             GENERATED_NOTE,
-            f"Preset `{run.info.preset}`, dataset seed {run.info.dataset_seed}, {seeds} training seed(s) per "
-            "method; command, code version, machine and every table: [docs/results.md](docs/results.md).",
+            f"Preset `{run.info.preset}`, dataset seed {run.info.dataset_seed}, {trained} per method, "
+            f"written by `{run.info.command}`; code version, machine, dataset fingerprints and every "
+            "table: [docs/results.md](docs/results.md).",
             "",
             ranking_note(run.intervals),
             "",

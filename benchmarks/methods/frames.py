@@ -151,7 +151,7 @@ def register_methods() -> None:
         description="reference: densities of msvdd's log-mel and IMU input frames given their neighbours (a "
         "mixture density network for the log-mel frames, Gaussian mixtures for the IMU's; largest "
         "conditional frame distance)",
-        label="densities of the log-mel and IMU frames given their neighbours (no M-SVDD network)",
+        label="frame densities given their neighbours (`context-net-frames`)",
         config=f"ContextNetFrames(components={MIXTURE_COMPONENTS}), {CONTEXT_NEIGHBOURS} neighbours on each "
         f"side, IMU context on {CONTEXT_DIM} principal axes",
     )

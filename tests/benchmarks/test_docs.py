@@ -117,7 +117,8 @@ def test_every_figure_of_the_generated_pages_comes_from_the_results_files(
     assert readme.endswith("<!-- results:end -->\noutro\n")
     block = readme.split("<!-- results:begin -->\n")[1].split("\n<!-- results:end -->")[0]
     lines = block.splitlines()
-    assert lines[1].startswith("Preset `tiny`, dataset seed 0") and "runs/" not in block
+    assert lines[1].startswith("Preset `tiny`, dataset seed 0, one training seed per method, written by")
+    assert doc["command"] in lines[1]
     assert lines[3].startswith("**This test set cannot rank") or lines[3].startswith("**Ranking**")
     assert doc["naive_verdict"] == lines[-1]
     assert DATE.search(block) is None

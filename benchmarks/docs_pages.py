@@ -78,7 +78,9 @@ def read_perf(path: Path) -> PerfResults:
         path=path,
         command=str(doc.get("command") or ""),
         code_version=str(doc.get("code_version") or ""),
-        machine=", ".join(f"{k} {v}" for k, v in machine.items()) if isinstance(machine, dict) else "",
+        machine=", ".join(f"{k} {v}" for k, v in machine.items() if v not in ("", None))
+        if isinstance(machine, dict)
+        else "",
         quick=bool(doc.get("quick", False)),
         figures=figures,
         descriptions={str(k): str(v) for k, v in doc.get("descriptions", {}).items()},

@@ -33,7 +33,9 @@ from benchmarks.report import (
 from benchmarks.results_file import RunResults
 
 GENERATED_NOTE = "<!-- Written by `msvdd-bench docs` (`make docs`) from results files; do not edit. -->"
-"""The first line of every generated page and block."""
+"""The first line of the results page and of the README's block."""
+METHODS_NOTE = "<!-- Written by `msvdd-bench docs` from the methods' descriptors; do not edit. -->"
+"""The first line of the method list."""
 RESULTS_BLOCK = "results"
 """Name of the README's headline block."""
 METHODS_BLOCK = "methods"
@@ -184,7 +186,7 @@ def headline_block(run: RunResults) -> str:
 def methods_block() -> str:
     """docs/detectors.md's method list: every registered method's descriptor."""
     lines = [
-        GENERATED_NOTE,
+        METHODS_NOTE,
         "| Method | Family | Reads | Paper rows | What it is | Configuration |",
         "|---|---|---|---|---|---|",
     ]

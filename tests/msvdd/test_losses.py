@@ -72,7 +72,7 @@ def test_batch_statistics_is_mcd_of_support_plus_eps() -> None:
 
 
 def test_batch_mahalanobis_depends_only_on_the_spectrum_against_eps() -> None:
-    # Why the paper's loss collapses embeddings (the diagnosis of issue 11): over the MCD support the mean
+    # Why the paper's loss collapses embeddings (`msvdd.losses`' docstring): over the MCD support the mean
     # squared distance to the batch's own estimate is tr((S + eps I)^-1 S) = sum_k lambda_k / (lambda_k +
     # eps), whatever z is. It is about s for any spread-out batch and falls only as eigenvalues sink below
     # eps.

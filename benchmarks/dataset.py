@@ -69,7 +69,14 @@ WINDOW_COLUMNS: tuple[str, ...] = (
 """Columns of `windows.csv`."""
 
 MECHANICAL_MIN_FRACTION = 0.5
-"""A window is a mechanical-fault window when at least this fraction of it has the fault active."""
+"""A window is a mechanical-fault window when at least this fraction of it has the fault active..."""
+MIN_FAULT_REVOLUTIONS = 1.0
+"""... and its faulty wheel turned at least this far (revolutions, either way) while the fault was active.
+
+A wheel defect shows only where it meets the floor or its bearing turns: a flat, a runout or a loose hub once
+per revolution, a bearing's spall a few times. A window in which the faulty wheel turned less than once
+(the robot waiting, or creeping through a turn) may not hold the defect at all, whatever the severity; it
+is left out like a window in which the fault barely started, for every method alike."""
 
 
 @dataclass(frozen=True)
@@ -267,13 +274,19 @@ _STAGING = ".staging-"
 
 
 def label_windows(
-    label: np.ndarray, sub_kind: np.ndarray, wheel: np.ndarray, starts_s: np.ndarray
+    label: np.ndarray,
+    sub_kind: np.ndarray,
+    wheel: np.ndarray,
+    starts_s: np.ndarray,
+    wheel_pos: np.ndarray | None = None,
 ) -> list[tuple[int, str, int] | None]:
     """Label each 2 s window from per-IMU-sample labels: (label, sub-kind, wheel), or None if ambiguous.
 
     A window touching any collision sample is a collision; one with the fault active for at least
-    `MECHANICAL_MIN_FRACTION` of it is mechanical; one with every sample normal is normal; anything else
-    (a fault barely started or ended) is ambiguous and left out.
+    `MECHANICAL_MIN_FRACTION` of it, and (given the wheels' encoder positions `wheel_pos`, (m, W) rad) its
+    faulty wheel turning at least `MIN_FAULT_REVOLUTIONS` meanwhile, is mechanical; one with every sample
+    normal is normal; anything else (a fault barely started or ended, or a faulty wheel that barely turned)
+    is ambiguous and left out.
     """
     out: list[tuple[int, str, int] | None] = []
     for start in starts_s:
@@ -284,9 +297,13 @@ def label_windows(
         if coll.any():
             out.append((COLLISION, SUB_KINDS[int(np.bincount(sub[coll]).argmax())], -1))
         elif mech.mean() >= MECHANICAL_MIN_FRACTION:
-            out.append(
-                (MECHANICAL, SUB_KINDS[int(np.bincount(sub[mech]).argmax())], int(np.median(whl[mech])))
-            )
+            faulty = int(np.median(whl[mech]))
+            if wheel_pos is not None and wheel_pos.shape[1] > faulty:
+                turned = np.abs(np.diff(wheel_pos[i0 : i0 + IMU_LEN, faulty]))[mech[1:]].sum() / (2 * np.pi)
+                if turned < MIN_FAULT_REVOLUTIONS:
+                    out.append(None)
+                    continue
+            out.append((MECHANICAL, SUB_KINDS[int(np.bincount(sub[mech]).argmax())], faulty))
         elif (lab == NORMAL).all():
             out.append((NORMAL, "none", -1))
         else:
@@ -315,11 +332,12 @@ def _window_rows(
     rows: list[WindowRow] = []
     dropped: list[DroppedWindow] = []
     for spec in specs:
-        imu = read_imu_signals(dataset / spec.episode_id, ("label", "sub_kind", "label_wheel"))
+        imu = read_imu_signals(dataset / spec.episode_id, ("label", "sub_kind", "label_wheel", "wheel_pos"))
         label, sub_kind, wheel = imu["label"], imu["sub_kind"], imu["label_wheel"]
         hop = preset.train_hop_s if spec.split in ("train", "val") else preset.test_hop_s
         starts = window_starts(len(label) / IMU_RATE, hop)
-        for start, lab in zip(starts, label_windows(label, sub_kind, wheel, starts), strict=True):
+        labelled = label_windows(label, sub_kind, wheel, starts, imu["wheel_pos"])
+        for start, lab in zip(starts, labelled, strict=True):
             if lab is None:
                 continue
             if spec.category == "nominal" and lab[0] != NORMAL:
@@ -524,18 +542,30 @@ def load_window_rows(
     audio_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
     imu_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
     imu6_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
+    odometry_parts: list[np.ndarray] = [np.empty(0)] * len(rows)
     for episode_id, indices in tqdm(by_episode.items(), desc=what, unit="ep", disable=not progress):
         episode = read_episode(dataset / episode_id)
         audio4410 = preprocess.decimate_audio(episode.audio)
         starts = np.array([rows[i].start_s for i in indices])
-        windows = preprocess.frame_windows(audio4410, episode.imu_vel_z, starts, imu6=episode.imu6)
+        odometry = episode.wheel_pos if episode.wheel_pos.shape[1] else None
+        windows = preprocess.frame_windows(
+            audio4410, episode.imu_vel_z, starts, imu6=episode.imu6, odometry=odometry
+        )
         for j, i in enumerate(indices):
             audio_parts[i] = windows.audio[j]
             imu_parts[i] = windows.imu[j]
             assert windows.imu6 is not None
             imu6_parts[i] = windows.imu6[j]
+            if windows.odometry is not None:
+                odometry_parts[i] = windows.odometry[j]
+    same = len({p.shape for p in odometry_parts}) == 1 and odometry_parts[0].ndim == 2
     return (
-        Windows(audio=np.stack(audio_parts), imu=np.stack(imu_parts), imu6=np.stack(imu6_parts)),
+        Windows(
+            audio=np.stack(audio_parts),
+            imu=np.stack(imu_parts),
+            imu6=np.stack(imu6_parts),
+            odometry=np.stack(odometry_parts) if same else None,
+        ),
         rows,
     )
 

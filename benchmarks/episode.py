@@ -30,17 +30,20 @@ import numpy as np
 import synth_audio
 from benchmarks.errors import InputNotFoundError, UserError
 from benchmarks.json_records import plain, read_json, read_record, write_json
+from sim.odometry import wheel_encoders
 from sim.trace import Trace
 from sim.vocab import LABELS, SUB_KINDS
 
-EPISODE_FORMAT_VERSION = 2
+EPISODE_FORMAT_VERSION = 3
 """Version of the episode folder layout; bumped on any change of file names, fields or sample formats.
 
 2: a simulated episode's `audio.flac` is 16-bit with TPDF dither (`EPISODE_AUDIO_BITS`; `meta.json` says
-`audio_bits`), its `trace.npz` is trace format 2 (`sim.trace_storage`). Format 1 (24-bit audio, trace
-format 1) is still read.
+`audio_bits`), its `trace.npz` is trace format 2 (`sim.trace_storage`).
+3: `imu.npz` holds the wheel encoders (`wheel_pos`, the odometry modality), `trace.npz` is trace format 3
+(the faults' defect model), and the fault kinds are those of `sim.vocab.FAULT_KINDS` (`out_of_round` in
+place of `imbalance`): older episodes' label indices mean other kinds, so they are not read.
 """
-READABLE_EPISODE_FORMATS: tuple[int, ...] = (1, 2)
+READABLE_EPISODE_FORMATS: tuple[int, ...] = (3,)
 """Episode format versions `read_episode` reads."""
 
 EPISODE_AUDIO_BITS = 16
@@ -68,8 +71,8 @@ SIMULATED, IMPORTED = "simulate", "import"
 """Where an episode comes from (`meta.json` `source`; absent means simulated)."""
 IMPORTED_EPISODE_FILES: tuple[str, ...] = (AUDIO_FILE, IMU_FILE, EVENTS_FILE, META_FILE)
 """The files of an imported episode folder: no `trace.npz`, there is no simulator behind it."""
-ALL_MODALITIES: tuple[str, ...] = ("audio", "imu")
-"""Sensors an episode can carry; a simulated one carries both."""
+ALL_MODALITIES: tuple[str, ...] = ("audio", "imu", "odometry")
+"""Sensors an episode can carry; a simulated one carries every one (odometry: the wheel encoders)."""
 
 
 class EpisodeError(UserError):
@@ -122,6 +125,8 @@ class Episode:
     """(m,) sub-kind index per IMU sample (`sim.vocab.SUB_KINDS`)."""
     label_wheel: np.ndarray
     """(m,) wheel index of a mechanical label, -1 otherwise."""
+    wheel_pos: np.ndarray
+    """(m, W) wheel encoder positions, rad (`sim.odometry`); (m, 0) without the odometry modality."""
     source: str = SIMULATED
     """`simulate` (generated) or `import` (real recordings: no trace, `scenario` empty)."""
     modalities: tuple[str, ...] = ALL_MODALITIES
@@ -393,6 +398,7 @@ def write_episode(
         label=trace.label.astype(np.int8),
         sub_kind=trace.sub_kind.astype(np.int16),
         label_wheel=trace.label_wheel.astype(np.int8),
+        wheel_pos=wheel_encoders(trace),
     )
     meta_doc = {
         "format_version": EPISODE_FORMAT_VERSION,
@@ -474,6 +480,8 @@ class ImuArrays:
     """(m,) int16 sub-kind index (`sim.vocab.SUB_KINDS`)."""
     label_wheel: np.ndarray
     """(m,) int8 wheel of a mechanical label, -1 otherwise."""
+    wheel_pos: np.ndarray
+    """(m, W) float64 wheel encoder positions, rad; (m, 0) without wheel odometry."""
 
     def write(self, path: Path) -> None:
         """Write the arrays to a compressed `.npz` (deterministic bytes)."""
@@ -486,6 +494,7 @@ class ImuArrays:
                 label=self.label,
                 sub_kind=self.sub_kind,
                 label_wheel=self.label_wheel,
+                wheel_pos=self.wheel_pos,
             )
 
 
@@ -542,6 +551,7 @@ def read_episode(directory: Path) -> Episode:
         label=arrays["label"],
         sub_kind=arrays["sub_kind"],
         label_wheel=arrays["label_wheel"],
+        wheel_pos=arrays["wheel_pos"],
         source=source,
         modalities=tuple(meta_doc.get("modalities", ALL_MODALITIES)),
     )

@@ -31,15 +31,17 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 3
+DATASET_FORMAT_VERSION = 4
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
 training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal_test_duration_s`).
 3: episodes of format 2 (`benchmarks.episode`: 16-bit dithered audio, float32 trace signals); same manifest.
+4: episodes of format 3 (wheel odometry, the faults' defect model, `out_of_round` for `imbalance`); a fault
+window needs its faulty wheel to have turned (`benchmarks.dataset.MIN_FAULT_REVOLUTIONS`).
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (2, 3)
-"""Dataset format versions `Manifest.load` reads (episode folders of either episode format)."""
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4,)
+"""Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}
 """Training budgets of manifests written when budgets shared the dataset presets' names."""

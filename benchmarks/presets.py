@@ -179,7 +179,7 @@ _PRESETS: dict[str, Preset] = {
         seeds=(0,),
         methods=("msvdd", "iforest-early", "audio-rms"),
         obstacle_kinds=("wall", "box"),
-        fault_kinds=("imbalance", "bearing"),
+        fault_kinds=("out_of_round", "bearing"),
         wheels=(0,),
     ),
     "quick": Preset(

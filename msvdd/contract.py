@@ -61,6 +61,9 @@ class Windows:
     """(N, 400) float32 IMU z-axis velocity at 200 Hz."""
     imu6: np.ndarray | None = None
     """Optional (N, 400, 6) float32 accelerometer xyz and gyro xyz at 200 Hz."""
+    odometry: np.ndarray | None = None
+    """Optional (N, 400, W) float32 wheel encoder positions at 200 Hz, rad, each relative to the window's
+    first sample (the wheel odometry modality; W wheels)."""
     audio_rate: float = AUDIO_RATE
     """Audio sample rate, Hz; must be 4410."""
     imu_rate: float = IMU_RATE
@@ -82,7 +85,11 @@ class Windows:
             raise WindowError(
                 f"imu6 shape {np.asarray(self.imu6).shape}; expected ({i.shape[0]}, {IMU_LEN}, 6)"
             )
-        for name, arr in (("audio", a), ("imu", i), ("imu6", self.imu6)):
+        if self.odometry is not None:
+            shape = np.asarray(self.odometry).shape
+            if len(shape) != 3 or shape[:2] != (i.shape[0], IMU_LEN):
+                raise WindowError(f"odometry shape {shape}; expected ({i.shape[0]}, {IMU_LEN}, W)")
+        for name, arr in (("audio", a), ("imu", i), ("imu6", self.imu6), ("odometry", self.odometry)):
             if arr is not None and not np.all(np.isfinite(arr)):
                 raise WindowError(f"{name} holds NaN or inf")
 
@@ -95,6 +102,7 @@ class Windows:
             audio=self.audio[index],
             imu=self.imu[index],
             imu6=None if self.imu6 is None else self.imu6[index],
+            odometry=None if self.odometry is None else self.odometry[index],
         )
 
 

@@ -57,6 +57,7 @@ def frame_windows(
     imu_z: np.ndarray,
     starts_s: np.ndarray,
     imu6: np.ndarray | None = None,
+    odometry: np.ndarray | None = None,
 ) -> Windows:
     """2 s windows starting at `starts_s` (seconds) of one episode's decimated audio and IMU.
 
@@ -65,6 +66,8 @@ def frame_windows(
         imu_z: (m,) IMU z-axis velocity at 200 Hz.
         starts_s: (k,) window start times, s; each window must lie inside both signals.
         imu6: optional (m, 6) accelerometer xyz and gyro xyz at 200 Hz.
+        odometry: optional (m, W) wheel encoder positions at 200 Hz, rad (each window's is taken relative to
+            its first sample).
 
     Raises:
         WindowError: wrong shapes, a window past the end of a signal, or a negative start.
@@ -78,6 +81,8 @@ def frame_windows(
         raise WindowError(f"imu_z shape {i.shape}; expected (m,) at {IMU_RATE} Hz")
     if imu6 is not None and np.asarray(imu6).shape != (i.shape[0], 6):
         raise WindowError(f"imu6 shape {np.asarray(imu6).shape}; expected ({i.shape[0]}, 6)")
+    if odometry is not None and (np.ndim(odometry) != 2 or np.shape(odometry)[0] != i.shape[0]):
+        raise WindowError(f"odometry shape {np.shape(odometry)}; expected ({i.shape[0]}, W)")
     if st.size and (not np.all(np.isfinite(st)) or st.min() < 0):
         raise WindowError(f"window starts must be finite and >= 0 s, got min {st.min()}")
     a0 = np.rint(st * AUDIO_RATE).astype(np.int64)
@@ -93,7 +98,13 @@ def frame_windows(
         audio=a[a_idx].astype(np.float32),
         imu=i[i_idx].astype(np.float32),
         imu6=None if imu6 is None else np.asarray(imu6)[i_idx].astype(np.float32),
+        odometry=None if odometry is None else _relative(np.asarray(odometry, dtype=np.float64)[i_idx]),
     )
+
+
+def _relative(angle: np.ndarray) -> np.ndarray:
+    """(k, n, W) wheel angles relative to each window's first sample, float32."""
+    return np.asarray(angle - angle[:, :1, :], dtype=np.float32)
 
 
 def smooth(x: np.ndarray, window: int, polyorder: int) -> np.ndarray:

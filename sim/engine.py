@@ -93,7 +93,9 @@ class Engine:
         self._wheel_sides = [
             (bool(side < 0), r) for side, r in zip(self.side, self.radius.tolist(), strict=True)
         ]
-        self.forcings: list[FaultForcing] = make_forcings(scenario.faults, info, scenario.seed)
+        self.forcings: list[FaultForcing] = make_forcings(scenario, info)
+        self._geom_pos0 = np.array(m.geom_pos[world.wheel_geom], dtype=np.float64)
+        self._sameframe0 = np.array(m.geom_sameframe[world.wheel_geom])
         self.ped_index = np.array([i for i, ob in enumerate(scenario.obstacles) if ob.kind == "pedestrian"])
         self.ped_mocap = (
             np.asarray(world.obstacle_mocap[self.ped_index], dtype=np.int64)
@@ -116,7 +118,14 @@ class Engine:
         self.time = 0.0
         self._ped_track = np.zeros((0, len(self.ped_index), 3))
         self._stepped_back = {}
-        self.forcings = make_forcings(self.scenario.faults, self.world.robot.info, self.scenario.seed)
+        self.forcings = make_forcings(self.scenario, self.world.robot.info)
+        wheel_geom = self.world.wheel_geom
+        self.model.geom_pos[wheel_geom] = self._geom_pos0
+        self.model.geom_sameframe[wheel_geom] = self._sameframe0
+        self._flats = [f for f in self.forcings if f.record.kind == "flat_spot"]
+        for forcing in self.forcings:
+            if forcing.record.kind in ("out_of_round", "flat_spot"):  # its shape moves in the wheel's frame
+                self.model.geom_sameframe[wheel_geom[forcing.wheel]] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE
 
     def _set_mocap(self, target: np.ndarray, times: np.ndarray) -> None:
         if len(self.ped_index) == 0:
@@ -130,7 +139,7 @@ class Engine:
         turn = w * self.half_track  # (side x w) x half_track: -turn on the left, +turn on the right, exactly
         cmd = [(v - turn if left else v + turn) / r for left, r in self._wheel_sides]
         for forcing in self.forcings:
-            cmd[forcing.fault.wheel] *= forcing.speed_factor(self.time)
+            cmd[forcing.wheel] *= forcing.speed_factor(self.time)
         return cmd
 
     def step(self, wheel_cmd: np.ndarray | list[float], out: np.ndarray) -> None:
@@ -149,19 +158,54 @@ class Engine:
             self._wheel_control[:k] = wheel_cmd
         if self.forcings:
             self._apply_faults(control[0], self.time + self.dt * np.arange(k))
+            self._apply_geometry()
         if self._has_peds:
             i0 = round(self.time / self.dt)
             self._ensure_ped_track(i0 + k)
             self._ped_view(control[0])[:, self.ped_mocap, :] = self._ped_track[i0 : i0 + k]
-        # The rollout starts from `state` with a zero solver warm start (as every period has), and leaves
-        # the period's last step in `data`, whose full state is the next period's start.
-        self._runner.rollout(
-            self._models, self._datas, self.state[None], control, control_spec=_CONTROL_SPEC,
-            skip_checks=True, nstep=k, sensordata=out[None],
-        )  # fmt: skip
-        mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
+        if self._flat_near(k):
+            self._step_flat(control, out)
+        else:
+            # The rollout starts from `state` with a zero solver warm start (as every period has), and
+            # leaves the period's last step in `data`, whose full state is the next period's start.
+            self._runner.rollout(
+                self._models, self._datas, self.state[None], control, control_spec=_CONTROL_SPEC,
+                skip_checks=True, nstep=k, sensordata=out[None],
+            )  # fmt: skip
+            mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
         self.sensordata = out[k - 1]
         self.time = self.data.time  # = state[0]
+
+    def _flat_near(self, k: int) -> bool:
+        """Whether a flat spot meets the floor during the coming `k` steps (then they run one by one)."""
+        sl, sd = self.world.sensors, self.sensordata
+        return any(
+            f.flat_near(self.time, float(sd[sl.wheel_angle + f.wheel]), float(sd[sl.wheel_speed + f.wheel]),
+                        k * self.dt)
+            for f in self._flats
+        )  # fmt: skip
+
+    def _step_flat(self, control: np.ndarray, out: np.ndarray) -> None:
+        """Run the period's steps one at a time, raising each flat-spotted wheel's collision sphere by its
+        flat's lift (`sim.faults.FaultForcing.flat_lift`) at the wheel's angle before every step."""
+        sl = self.world.sensors
+        for i in range(out.shape[0]):
+            sd = self.sensordata
+            time = float(self.state[0])
+            for f in self._flats:
+                theta = float(sd[sl.wheel_angle + f.wheel])
+                lift = f.flat_lift(time, theta)
+                g = int(self.world.wheel_geom[f.wheel])
+                # the chassis' up axis in the wheel's frame (the wheel turns by theta about its y axis)
+                self.model.geom_pos[g] = self._geom_pos0[f.wheel] + lift * np.array(
+                    [-math.sin(theta), 0.0, math.cos(theta)]
+                )
+            self._runner.rollout(
+                self._models, self._datas, self.state[None], control[:, i : i + 1],
+                control_spec=_CONTROL_SPEC, skip_checks=True, nstep=1, sensordata=out[None, i : i + 1],
+            )  # fmt: skip
+            mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
+            self.sensordata = out[i]
 
     def _ped_view(self, control: np.ndarray) -> np.ndarray:
         k = control.shape[0]
@@ -221,18 +265,32 @@ class Engine:
         steps = self.dt * np.arange(k)
         base = self.world.base_body
         for forcing in self.forcings:
-            wi = forcing.fault.wheel
+            wi = forcing.wheel
             angle = float(sd[sl.wheel_angle + wi])
             omega = float(sd[sl.wheel_speed + wi])
             torque = float(sd[sl.wheel_torque + wi])
             theta = angle + omega * steps
             wrench = np.zeros((k, 6))
             qf = np.zeros(k)
-            forcing.apply(times, theta, omega, forward, lateral, torque, wrench, qf, self.dt)
+            forcing.apply(times, theta, omega, lateral, torque, wrench, qf, self.dt)
             hub = base_pos + rot @ self.world.robot.info.wheel_pos_body[wi]
             xf[:, base, :3] += wrench[:, :3]
             xf[:, base, 3:] += wrench[:, 3:] + _cross(hub - com, wrench[:, :3])
             control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
+
+
+    def _apply_geometry(self) -> None:
+        """An out-of-round wheel: its collision shape moved off the axle by the runout, towards the defect's
+        angle, for the coming period (the model is read at every step of the rollout)."""
+        for forcing in self.forcings:
+            offset = forcing.geometry_offset(self.time)
+            if forcing.record.kind != "out_of_round":
+                continue
+            g = int(self.world.wheel_geom[forcing.wheel])
+            phase = forcing.record.phase
+            self.model.geom_pos[g] = self._geom_pos0[forcing.wheel] + offset * np.array(
+                [math.cos(phase), 0.0, math.sin(phase)]
+            )
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from dm_env import specs
 
 from sim.engine import CONTROL_STEPS, Engine
 from sim.events import extend_runs, labels, merge_gap_steps
-from sim.faults import fault_record
+from sim.faults import fault_records
 from sim.imu import ImuNoise, decimate, decimation_factor, imu_noise
 from sim.random_scenarios import ScenarioOptions, draw_scenario
 from sim.rollout import steps_for
@@ -84,9 +84,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self._factor = decimation_factor(self.scenario.sensors, self.engine.dt)
         self._n_samples = steps_for(self.scenario, self.engine.dt) // self._factor
         self._noise: ImuNoise = imu_noise(self._n_samples, self.scenario.sensors, self.scenario.seed)
-        self._faults = tuple(
-            fault_record(f, self.world.robot.info, self.scenario.duration) for f in self.scenario.faults
-        )
+        self._faults = fault_records(self.scenario, self.world.robot.info)
         self._contact_runs: list[list[tuple[int, int]]] = [[] for _ in self.world.obstacles]
         self._steps = 0
         self._left = np.array([1.0 if "left" in n else 0.0 for n in self.world.robot.info.wheel_names])

@@ -7,10 +7,10 @@ import numpy as np
 from sim.driving import RouteController
 from sim.engine import CONTROL_STEPS, Engine, yaw_of
 from sim.events import contact_events, labels, merge_gap_steps, transient_events
-from sim.faults import fault_record
+from sim.faults import fault_records, strikes_of
 from sim.imu import imu_samples
 from sim.scenario import Scenario
-from sim.trace import Trace
+from sim.trace import FaultStrikes, Trace
 from sim.world import SensorSlices, World, build_world
 
 
@@ -24,7 +24,7 @@ def simulate(scenario: Scenario, world: World | None = None) -> Trace:
     world = world if world is not None else build_world(scenario)
     engine = Engine(world, scenario)
     sensordata = run_route(engine, scenario)
-    return assemble_trace(scenario, world, sensordata, engine.dt)
+    return assemble_trace(scenario, world, sensordata, engine.dt, strikes_of(engine.forcings))
 
 
 def steps_for(scenario: Scenario, dt: float) -> int:
@@ -172,11 +172,18 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
     return record
 
 
-def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray | Recording, dt: float) -> Trace:
+def assemble_trace(
+    scenario: Scenario,
+    world: World,
+    sd: np.ndarray | Recording,
+    dt: float,
+    strikes: FaultStrikes | None = None,
+) -> Trace:
     """Turn recorded sensors into a Trace: IMU with noise, events, fault records and labels.
 
     Args:
         sd: (n, nsensordata) sensors after every physics step, or `run_route`'s recording of them.
+        strikes: the strikes the faults' physics applied (`sim.faults.strikes_of`); None: none.
     """
     sl = world.sensors
     w = world.n_wheels
@@ -209,7 +216,7 @@ def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray | Recording,
     found, bumps = contact(sl.transient_contact, w)
     transients = transient_events(found, bumps[:, :, 1:4], bumps[:, :, 4:7], scenario, dt)
     info = world.robot.info
-    faults = tuple(fault_record(f, info, float(time[-1])) for f in scenario.faults)
+    faults = fault_records(scenario, info)
     factor = n // len(imu.time)
     label, sub, wheel = labels(imu.time, event_runs, world.obstacles, faults, dt)
     return Trace(
@@ -238,6 +245,7 @@ def assemble_trace(scenario: Scenario, world: World, sd: np.ndarray | Recording,
         contacts=contacts,
         transients=transients,
         faults=faults,
+        fault_strikes=strikes if strikes is not None else FaultStrikes.empty(),
         obstacles=world.obstacles,
         obstacle_pos=np.ascontiguousarray(ob_pos[factor - 1 :: factor][: len(imu.time)]),
         label=label,

@@ -22,13 +22,15 @@ import numpy as np
 
 from sim import trace_storage
 
-TRACE_FORMAT_VERSION = 2
+TRACE_FORMAT_VERSION = 3
 """Bumped whenever a field is added, removed or changes meaning, or the file keeps it differently.
 
 2: the sampled signals are float32; time stamps, wheel angles and microphone positions are derived when they
 follow the simulator's laws (`sim.trace_storage`).
+3: the faults' defect model (`FaultRecord.size`, `FaultRecord.phase`, `fault_strikes`); `imbalance` gave way
+to `out_of_round`. Formats 1 and 2 read with no strikes and zero sizes and phases.
 """
-READABLE_TRACE_FORMATS: tuple[int, ...] = (1, 2)
+READABLE_TRACE_FORMATS: tuple[int, ...] = (1, 2, 3)
 """Trace format versions `Trace.load` reads."""
 
 
@@ -118,9 +120,8 @@ class TransientEvents:
 
 
 # What a fault record means physically, the same for every unit and so not stored in the trace: the wheel
-# bearing's geometry and the imbalance at severity 1. The physics applies them (`sim.faults`: the bearing's
-# defect order, the imbalance's force) and the audio sounds them (`synth_audio.faults`: the balls' strikes,
-# the wheel's load modulation); both read them here.
+# bearing's geometry. The physics applies it (`sim.faults`: the bearing's defect order and strikes) and the
+# audio sounds it (`synth_audio.faults`); both read it here.
 BEARING_BALLS = 9
 """Rolling elements in the wheel bearing (a 6001-size deep-groove ball bearing)."""
 BEARING_BALL_DIAMETER = 0.00635
@@ -129,9 +130,6 @@ BEARING_PITCH_DIAMETER = 0.0215
 """Pitch diameter, m."""
 BEARING_CONTACT_ANGLE = 0.0
 """Contact angle, rad."""
-
-IMBALANCE_ME = 0.03
-"""Eccentric mass x radius of an imbalance fault at severity 1, kg m (`FaultRecord.severity` scales it)."""
 
 # What a contact strikes, by `ContactEvents.obstacle_kind`: the physics simulates boxes and luggage as free
 # bodies of this mass (`sim.scenario.OBSTACLE_MASS`), the audio bounds what a hit can exchange by the reduced
@@ -156,12 +154,37 @@ class FaultRecord:
     duration: float
     """Length, s."""
     defect_order: float
-    """Defect events per wheel revolution (1 for flat spot and imbalance, BPFO/BPFI order for a bearing,
-    pinion teeth x gear ratio for gear mesh); the defect frequency is order x wheel rev/s."""
+    """Defect events per wheel revolution (1 for a flat spot, a runout and a loose hub, the ball-pass order
+    less the balls' slip for a bearing, pinion teeth x gear ratio for gear mesh); the defect frequency is
+    order x wheel rev/s."""
     resonance_hz: float
     """Structural resonance the defect excites, Hz."""
     damping_ratio: float
     """Damping ratio of that resonance."""
+    size: float = 0.0
+    """The defect's size (`sim.faults.defect_size`): flat depth, runout, spall length or play in m; for worn
+    gears the transmission error's growth in units of a healthy pair's."""
+    phase: float = 0.0
+    """Wheel angle at which the defect meets the floor (flat, runout's high point, loose hub's wobble) or a
+    ball meets the spall, rad."""
+
+
+@dataclass(frozen=True)
+class FaultStrikes:
+    """The strikes the impulsive faults' physics applied to the chassis (`sim.faults`), as the audio sounds
+    them."""
+
+    time: np.ndarray
+    """(n,) time of each strike, s."""
+    wheel: np.ndarray
+    """(n,) index of the faulty wheel that struck."""
+    impulse: np.ndarray
+    """(n,) vertical impulse of the strike, N s."""
+
+    @classmethod
+    def empty(cls) -> FaultStrikes:
+        """No strikes."""
+        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
 
 
 @dataclass(frozen=True)
@@ -244,6 +267,8 @@ class Trace:
     """(m,) int16 sub-kind per IMU sample: index into `sim.vocab.SUB_KINDS`."""
     label_wheel: np.ndarray
     """(m,) int8 wheel of a mechanical label, -1 otherwise."""
+    fault_strikes: FaultStrikes = field(default_factory=FaultStrikes.empty)
+    """The strikes of the impulsive faults, in time order."""
     format_version: int = field(default=TRACE_FORMAT_VERSION)
     """Trace format version."""
 

@@ -83,8 +83,8 @@ def decode(arrays: dict[str, np.ndarray], version: int) -> dict[str, np.ndarray]
         KeyError: a stored array is missing (named).
     """
     if version == 1:
-        return _with_transient_heights(dict(arrays))
-    out = _with_transient_heights(decode_floats(arrays))
+        return _with_fault_defects(_with_transient_heights(dict(arrays)))
+    out = _with_fault_defects(_with_transient_heights(decode_floats(arrays)))
     n, m = out["wheel_speed"].shape[0], out["label"].shape[0]
     if "time" not in out:
         out["time"] = _time(out["physics_dt"], n)
@@ -108,6 +108,19 @@ def _with_transient_heights(out: dict[str, np.ndarray]) -> dict[str, np.ndarray]
 
         kinds = [str(k) for k in np.asarray(out["transients.kind"]).ravel()]
         out["transients.height"] = np.array([TRANSIENT_HEIGHT[k] for k in kinds], dtype=np.float64)
+    return out
+
+
+def _with_fault_defects(out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Traces written before the faults' defect model (formats 1 and 2) read with zero defect sizes and
+    phases and no strikes."""
+    if "fault_strikes.time" not in out:
+        n = int(out.get("faults.__len__", 0))
+        out.setdefault("faults.size", np.zeros(n))
+        out.setdefault("faults.phase", np.zeros(n))
+        out["fault_strikes.time"] = np.zeros(0)
+        out["fault_strikes.wheel"] = np.zeros(0, dtype=np.int64)
+        out["fault_strikes.impulse"] = np.zeros(0)
     return out
 
 

@@ -46,7 +46,7 @@ OBSTACLE_MATERIAL: dict[str, str] = {
 TRANSIENT_KINDS: tuple[str, ...] = ("seam", "threshold", "cable", "kerb_ramp", "debris")
 """Benign transients that nominal driving contains (not anomalies)."""
 
-FAULT_KINDS: tuple[str, ...] = ("flat_spot", "imbalance", "bearing", "loose_wheel", "motor_degradation")
+FAULT_KINDS: tuple[str, ...] = ("flat_spot", "out_of_round", "bearing", "loose_wheel", "motor_degradation")
 """Wheel faults, each modelled in the physics."""
 
 WHEELS_SKID4: tuple[str, ...] = ("front_left", "front_right", "back_left", "back_right")

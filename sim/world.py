@@ -100,6 +100,8 @@ class World:
     """(W,) body id of each wheel."""
     wheel_dof: np.ndarray
     """(W,) dof index of each wheel joint."""
+    wheel_geom: np.ndarray
+    """(W,) geom id of each wheel's collision shape (an out-of-round wheel's is moved off its axle)."""
     base_body: int
     """Body id of the robot base."""
     root_dof: int
@@ -241,6 +243,7 @@ def _world(
         n_wheels=len(wheels),
         wheel_body=np.array([model.body(f"{prefix}wheel_{n}").id for n in wheels]),
         wheel_dof=np.array([model.jnt_dofadr[model.joint(prefix + n).id] for n in wheels]),
+        wheel_geom=np.array([model.geom(prefix + n).id for n in wheels]),
         base_body=int(base_id),
         root_dof=int(model.jnt_dofadr[model.joint(prefix + "root/").id]),
         obstacles=_obstacle_records(obstacles),

@@ -106,7 +106,9 @@ def _robot_buses(
         for f in trace.faults
     }
     for fault in () if "faults" in muted else trace.faults:
-        buses["faults"][fault.wheel] += fault_sound(drive, fault, nominal[fault.wheel], fault_rng)
+        buses["faults"][fault.wheel] += fault_sound(
+            drive, fault, trace.fault_strikes, nominal[fault.wheel], fault_rng
+        )
     buses["transients"] = bus()
     tr_rng = _rng(seed, "transients")
     tr = trace.transients

@@ -252,6 +252,7 @@ def _write_episode(
         label=label,
         sub_kind=sub_global,
         label_wheel=np.full(n_imu, -1, dtype=np.int8),
+        wheel_pos=np.zeros((n_imu, 0)),
     )
     write_imported_episode(
         directory / episode_id,

@@ -15,7 +15,7 @@ import synth_audio
 from benchmarks.episode import EPISODE_AUDIO_BITS, EPISODE_FILES, read_episode, read_events
 from benchmarks.manifest import READABLE_DATASET_FORMATS, Manifest
 from msvdd.contract import AUDIO_LEN, IMU_LEN
-from sim.trace import Trace, _flatten
+from sim.trace import Trace
 from synth_audio.io import quantise
 
 
@@ -88,14 +88,17 @@ def test_missing_file_and_other_version_are_named(tiny_dataset: Path, tmp_path: 
         ds.open_dataset(copy)
 
 
-def test_a_format_1_dataset_is_refused_naming_both_versions(tiny_dataset: Path, tmp_path: Path) -> None:
-    assert ds.DATASET_FORMAT_VERSION == 3 and READABLE_DATASET_FORMATS == (2, 3)
+def test_a_dataset_of_an_earlier_format_is_refused_naming_both_versions(
+    tiny_dataset: Path, tmp_path: Path
+) -> None:
+    # Format 3 held the fault kind `imbalance` where `out_of_round` now is: its labels would be misread.
+    assert ds.DATASET_FORMAT_VERSION == 4 and READABLE_DATASET_FORMATS == (4,)
     copy = tmp_path / "old"
     copy.mkdir()
     manifest = json.loads((tiny_dataset / "manifest.json").read_text())
-    manifest["format_version"] = 1  # the layout before SNR ranges
+    manifest["format_version"] = 3
     (copy / "manifest.json").write_text(json.dumps(manifest))
-    with pytest.raises(ds.DatasetError, match=r"format_version 1, this software reads format_version 2 or 3"):
+    with pytest.raises(ds.DatasetError, match=r"format_version 3, this software reads format_version 4; gen"):
         ds.open_dataset(copy, verify=False)
 
 
@@ -167,45 +170,6 @@ def test_stored_audio_is_the_dithered_render_of_the_stored_trace(tiny_dataset: P
     step = 2.0**-15
     np.testing.assert_array_equal(stored, (quantise(render.samples, 16, spec.seed) * step).astype(np.float32))
     assert np.abs(stored.astype(np.float64) - render.samples).max() <= 1.5 * step
-
-
-def _to_format_2(dataset: Path, out: Path) -> Path:
-    """A copy of a dataset in the layout written before 16-bit audio: dataset format 2, episode format 1
-    (24-bit audio, every trace array float64 in trace format 1), checksums recomputed."""
-    shutil.copytree(dataset, out)
-    manifest = json.loads((out / "manifest.json").read_text())
-    manifest["format_version"] = 2
-    for entry in manifest["episodes"]:
-        folder = out / entry["episode_id"]
-        synth_audio.write(folder / "audio.flac", synth_audio.read(folder / "audio.flac"))
-        arrays = _flatten(Trace.load(folder / "trace.npz"))
-        arrays["format_version"] = np.asarray(1)
-        with open(folder / "trace.npz", "wb") as handle:
-            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
-        meta = json.loads((folder / "meta.json").read_text())
-        meta["format_version"] = 1
-        del meta["audio_bits"]
-        (folder / "meta.json").write_text(json.dumps(meta))
-        entry["files"] = {name: ds.sha256_file(folder / name) for name in entry["files"]}
-    (out / "manifest.json").write_text(json.dumps(manifest))
-    return out
-
-
-def test_a_dataset_of_the_previous_format_still_opens_and_loads(tiny_dataset: Path, tmp_path: Path) -> None:
-    """Datasets already on disk (format 2: 24-bit audio, float64 traces) verify, load the same windows and
-    give the same traces."""
-    old = _to_format_2(tiny_dataset, tmp_path / "old")
-    assert sf.info(str(next(old.glob("*/audio.flac")))).subtype == "PCM_24"
-    windows, rows = ds.open_dataset(old).load_windows("test")
-    expected, expected_rows = ds.open_dataset(tiny_dataset).load_windows("test")
-    assert rows == expected_rows
-    np.testing.assert_array_equal(windows.audio, expected.audio)
-    np.testing.assert_array_equal(windows.imu, expected.imu)
-    episode = read_episode(old / rows[0].episode)
-    assert episode.trace().format_version == 1
-    np.testing.assert_array_equal(
-        episode.trace().wheel_angle, read_episode(tiny_dataset / rows[0].episode).trace().wheel_angle
-    )
 
 
 @pytest.mark.parametrize(("old", "new"), [("tiny", "smoke"), ("quick", "short"), ("paper", "full")])

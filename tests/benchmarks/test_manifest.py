@@ -4,7 +4,6 @@ with its file, reads the former format, and leaves every dataset's fingerprint a
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import math
@@ -132,30 +131,13 @@ def test_a_bad_field_is_named_with_the_file(
 
 
 def test_the_format_version_is_checked_before_any_field(tmp_path: Path) -> None:
-    assert "format_version 99, this software reads format_version 2 or 3" in _load_error(
+    assert "format_version 99, this software reads format_version 4" in _load_error(
         tmp_path, {"format_version": 99}
     )
     assert "format_version None" in _load_error(tmp_path, {"seed": 0})
     (tmp_path / MANIFEST_FILE).write_text("{not json")
     with pytest.raises(DatasetError, match=r"manifest\.json: not a JSON document"):
         Manifest.load(tmp_path)
-
-
-def test_a_format_2_manifest_reads_with_the_later_fields_at_their_defaults(tiny_dataset: Path) -> None:
-    """Format 2 (datasets in runs/ still hold it): no speed factors, floors or environments in the preset,
-    no speed factors in the episodes."""
-    _, doc = _raw(tiny_dataset)
-    old = copy.deepcopy(doc)
-    old["format_version"] = 2
-    later = ("drive_speed_scale", "approach_speed_scale", "train_environments", "test_environments")
-    for name in (*later, "train_surfaces", "test_surfaces"):
-        del old["preset"][name]
-    for entry in old["episodes"]:
-        del entry["drive_speed_scale"], entry["approach_speed_scale"]
-    manifest = Manifest.from_dict(old)
-    assert manifest.format_version == 2 and manifest.preset == get_preset("tiny")
-    assert [e.spec for e in manifest.episodes] == [e.spec for e in Manifest.from_dict(doc).episodes]
-    assert manifest.to_dict() == {**doc, "format_version": 2}
 
 
 def test_an_imported_episode_has_no_snr_and_names_its_recording() -> None:

@@ -154,7 +154,7 @@ def _severity_rows() -> tuple[list[WindowRow], dict[str, float]]:
     severity = {"f0": 0.1, "f1": 0.2, "f2": 0.25, "f3": 0.4, "f4": 0.8, "f5": 1.0}
     rows: list[WindowRow] = []
     plan = [("normal", "none", f"n{i}", 5) for i in range(4)]
-    plan += [("mechanical", "bearing" if e in ("f0", "f2", "f4") else "imbalance", e, 3) for e in severity]
+    plan += [("mechanical", "bearing" if e in ("f0", "f2", "f4") else "out_of_round", e, 3) for e in severity]
     plan += [("mechanical", "bearing", "f_unknown", 3), ("collision", "wall", "c0", 2)]
     for kind, sub, episode, n in plan:
         for k in range(n):
@@ -178,7 +178,7 @@ def test_aucs_by_fault_severity_are_the_plain_aucs_of_each_bin() -> None:
     auc = run.methods["msvdd"].auc
     bins = {"0.00-0.25": ("f0", "f1"), "0.25-0.50": ("f2", "f3"), "0.75-1.00": ("f4", "f5")}
     expected_keys = {  # no fault episode lies in 0.50-0.75
-        severity_key(label, sub) for label in bins for sub in ("mechanical", "bearing", "imbalance")
+        severity_key(label, sub) for label in bins for sub in ("mechanical", "bearing", "out_of_round")
     }
     assert {k for k in auc if "_severity_" in k} == expected_keys
     episodes = np.array([r.episode for r in rows])
@@ -189,8 +189,8 @@ def test_aucs_by_fault_severity_are_the_plain_aucs_of_each_bin() -> None:
         assert auc[severity_key(label)].value == pytest.approx(expected, abs=1e-12)
         values.append(expected)
     assert values[0] < values[1] < values[2]
-    keep = normal | (episodes == "f5")  # severity 1.0 belongs to the last bin, as imbalance there
-    assert auc[severity_key("0.75-1.00", "imbalance")].value == pytest.approx(
+    keep = normal | (episodes == "f5")  # severity 1.0 belongs to the last bin, as out_of_round there
+    assert auc[severity_key("0.75-1.00", "out_of_round")].value == pytest.approx(
         roc_auc_score(~normal[keep], scores[keep]), abs=1e-12
     )
 
@@ -226,8 +226,8 @@ def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
     assert lines[0] == "| Fault kind | 0.00-0.25 | 0.25-0.50 | 0.75-1.00 |"
     auc = run.methods["msvdd"].auc
     bins = ("0.00-0.25", "0.25-0.50", "0.75-1.00")
-    for line, kind in zip(lines[1:], ("bearing", "imbalance"), strict=True):
-        # every kind has one episode in each of these bins (bearing f0, f2, f4; imbalance f1, f3, f5)
+    for line, kind in zip(lines[1:], ("bearing", "out_of_round"), strict=True):
+        # every kind has one episode in each of these bins (bearing f0, f2, f4; out_of_round f1, f3, f5)
         assert (
             line
             == f"| {kind} | " + " | ".join(format_interval(auc[severity_key(b, kind)]) for b in bins) + " |"

@@ -37,7 +37,7 @@ nominal_val = 0
 nominal_train_duration_s = 16.0
 nominal_test_duration_s = 8.0
 collision_duration_s = 10.0
-fault_kinds = ["imbalance"]
+fault_kinds = ["out_of_round"]
 faults_per_kind_wheel = 2
 fault_duration_s = 10.0
 """

@@ -149,8 +149,27 @@ def test_anomalous_windows_of_nominal_episodes_are_left_out_and_listed(tmp_path:
     label[int(4.5 * RATE) : int(4.6 * RATE)] = COLLISION  # the route grazed an obstacle
     sub[int(4.5 * RATE) : int(4.6 * RATE)] = sub_kind_index("pedestrian")
     (tmp_path / spec.episode_id).mkdir()
-    np.savez(tmp_path / spec.episode_id / "imu.npz", label=label, sub_kind=sub, label_wheel=wheel)
+    np.savez(tmp_path / spec.episode_id / "imu.npz", label=label, sub_kind=sub, label_wheel=wheel,
+             wheel_pos=np.zeros((label.size, 0)))  # fmt: skip
     rows, dropped = _window_rows(tmp_path, preset, [spec])
     assert all(r.kind == "normal" for r in rows)
     assert {d.start_s for d in dropped} == {3.0, 3.5, 4.0} and {d.sub_kind for d in dropped} == {"pedestrian"}
     assert len(rows) + len(dropped) == window_starts(6.0, preset.train_hop_s).size
+
+
+def test_a_fault_window_needs_its_faulty_wheel_to_turn_a_revolution() -> None:
+    # Wheel 2 is faulty from 1 s; it turns at 0.6 rev/s for 5 s, then stands for 3 s. A window holds the
+    # defect only where wheel 2 turned at least once while the fault was active.
+    label, sub, wheel = _timeline(8.0)
+    label[RATE:], sub[RATE:], wheel[RATE:] = MECHANICAL, sub_kind_index("flat_spot"), 2
+    t = np.arange(label.size) / RATE
+    turned = 2 * np.pi * 0.6 * np.minimum(t, 5.0)
+    wheel_pos = np.zeros((label.size, 4))
+    wheel_pos[:, 2] = turned
+    wheel_pos[:, 0] = 2 * np.pi * 3.0 * t  # another wheel's turning does not count
+    starts = np.array([1.0, 3.0, 4.0, 6.0])
+    got = label_windows(label, sub, wheel, starts, wheel_pos)
+    assert got[0] == (MECHANICAL, "flat_spot", 2) and got[1] == (MECHANICAL, "flat_spot", 2)
+    assert got[2] is None  # 4-6 s: 0.6 revolutions
+    assert got[3] is None  # standing
+    assert label_windows(label, sub, wheel, starts)[3] == (MECHANICAL, "flat_spot", 2)  # no encoders

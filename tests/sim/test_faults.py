@@ -9,7 +9,7 @@ import pytest
 from sim_kit import straight
 
 from sim import Fault, Trace, simulate
-from sim.faults import bpfo_order
+from sim.faults import FaultForcing, fault_record, strike_impulse
 from sim.trace import _flatten
 
 SPEED = 1.0
@@ -43,7 +43,7 @@ def _rotation_hz(trace: Trace) -> float:
 
 
 @pytest.mark.parametrize(
-    ("kind", "column", "axis"), [("imbalance", "imu_acc", 0), ("flat_spot", "imu_acc", 2)]
+    ("kind", "column", "axis"), [("out_of_round", "imu_gyro", 0), ("flat_spot", "imu_acc", 2)]
 )
 def test_once_per_revolution_faults_peak_at_wheel_rotation_frequency(
     kind: str, column: str, axis: int
@@ -58,7 +58,7 @@ def test_once_per_revolution_faults_peak_at_wheel_rotation_frequency(
 
 def test_bearing_fault_is_an_impulse_train_at_the_defect_frequency() -> None:
     base = _run("", 0.0)
-    f_d = bpfo_order() * _rotation_hz(base)
+    f_d = _run("bearing", 1.0).faults[0].defect_order * _rotation_hz(base)
     amps = [_amplitude(*_imu(_run("bearing", s) if s else base, "imu_acc", 2), f_d) for s in (0.0, 0.5, 1.0)]
     assert amps[0] < amps[1] < amps[2]
     assert amps[2] > 5 * amps[0]
@@ -103,9 +103,9 @@ def _fault_hz(trace: Trace) -> float:
     return trace.robot.gear_ratio * f_r if fault.kind == "motor_degradation" else fault.defect_order * f_r
 
 
-@pytest.mark.parametrize("kind", ["flat_spot", "bearing", "motor_degradation"])
+@pytest.mark.parametrize("kind", ["flat_spot", "out_of_round", "motor_degradation"])
 def test_severity_one_stands_well_above_the_nominal_z_velocity_spectrum(kind: str) -> None:
-    # calibration criterion of sim.faults: >= 4x the healthy drive's z-velocity at the fault frequency
+    # the heave of a flat or a runout, and worn gears' torque ripple: >= 4x the healthy drive's z-velocity
     base, worn = _run("", 0.0), _run(kind, 1.0)
     freq = _fault_hz(worn)
     line = _amplitude(*_imu(worn, "imu_vel_z", 0), freq)
@@ -117,7 +117,7 @@ def test_loose_wheel_rattle_shakes_the_z_velocity_at_severity_one() -> None:
     assert np.std(_imu(loose, "imu_vel_z", 0)[0]) > 4 * np.std(_imu(base, "imu_vel_z", 0)[0])
 
 
-@pytest.mark.parametrize("kind", ["imbalance", "bearing", "loose_wheel", "motor_degradation", "flat_spot"])
+@pytest.mark.parametrize("kind", ["out_of_round", "bearing", "loose_wheel", "motor_degradation", "flat_spot"])
 def test_zero_severity_equals_no_fault_bit_for_bit(kind: str) -> None:
     base = simulate(straight(duration=2.0))
     zero = simulate(straight(duration=2.0, faults=(Fault(kind, 1, 0.0, 0.5),)))
@@ -130,7 +130,7 @@ def test_zero_severity_equals_no_fault_bit_for_bit(kind: str) -> None:
 
 
 def test_fault_labels_mark_the_active_interval() -> None:
-    trace = simulate(straight(duration=4.0, faults=(Fault("imbalance", 2, 0.8, 1.5, 1.0),)))
+    trace = simulate(straight(duration=4.0, faults=(Fault("out_of_round", 2, 0.8, 1.5, 1.0),)))
     on = (trace.imu_time >= 1.5) & (trace.imu_time < 2.5)
     assert np.all(trace.label[on] == 2) and np.all(trace.label[~on] == 0)
     assert np.all(trace.label_wheel[on] == 2) and np.all(trace.label_wheel[~on] == -1)
@@ -148,3 +148,42 @@ def test_same_scenario_gives_the_same_trace_bit_for_bit() -> None:
     assert a.keys() == b.keys()
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_a_flat_lifts_the_wheel_by_its_geometry() -> None:
+    # A flat of depth h at angle phase: the axle stands r - h above the floor when the flat lies flush,
+    # r outside +-acos(1 - h / r), and the lift is continuous between.
+    trace = _run("flat_spot", 1.0)
+    record = trace.faults[0]
+    forcing = FaultForcing(record, trace.robot, np.random.default_rng(0))
+    r = float(trace.robot.wheel_radius[0])
+    half = np.arccos(1.0 - record.size / r)
+    t = record.onset + 1.0
+    assert forcing.flat_lift(t, record.phase) == pytest.approx(record.size)
+    assert forcing.flat_lift(t, record.phase + half + 1e-6) == 0.0
+    assert forcing.flat_lift(t, record.phase - half - 1e-6) == 0.0
+    assert forcing.flat_lift(t, record.phase + half - 1e-6) == pytest.approx(0.0, abs=1e-7)
+    assert forcing.flat_lift(record.onset - 0.1, record.phase) == 0.0
+
+
+def test_a_flat_strikes_once_a_revolution_with_the_step_law() -> None:
+    trace = _run("flat_spot", 1.0)
+    record, strikes = trace.faults[0], trace.fault_strikes
+    keep = (strikes.time > WINDOW[0]) & (strikes.time < WINDOW[1])
+    period = np.median(np.diff(strikes.time[keep]))
+    assert period == pytest.approx(1.0 / _rotation_hz(trace), rel=0.05)
+    r = float(trace.robot.wheel_radius[0])
+    corner = trace.robot.mass / 4
+    speed = np.interp(strikes.time[keep], trace.time, np.abs(trace.wheel_speed[:, 0])) * r
+    np.testing.assert_allclose(strikes.impulse[keep], strike_impulse(record, speed, corner, r), rtol=0.05)
+
+
+def test_fault_records_draw_the_defect_angle_from_the_scenario() -> None:
+    # The defect's angle and a bearing's slip come from the scenario seed and the fault's index.
+    trace = _run("bearing", 1.0)
+    fault = Fault("bearing", 0, 1.0, 1.0)
+    a = fault_record(fault, trace.robot, 9.0, seed=1)
+    b = fault_record(fault, trace.robot, 9.0, seed=2)
+    assert a.phase != b.phase and a.defect_order != b.defect_order
+    assert fault_record(fault, trace.robot, 9.0, seed=1) == a
+    assert 0.97 < a.defect_order / 3.1 < 1.03

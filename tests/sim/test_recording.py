@@ -55,6 +55,6 @@ def test_wheel_commands_are_the_numpy_formula_bit_for_bit() -> None:
         for v, w in [(0.0, 0.0), (-0.0, 0.0), (0.0, -0.0), *rng.normal(size=(200, 2)).tolist()]:
             expected = (v + engine.side * w * engine.half_track) / engine.radius
             for forcing in engine.forcings:
-                expected[forcing.fault.wheel] *= forcing.speed_factor(engine.time)
+                expected[forcing.wheel] *= forcing.speed_factor(engine.time)
             got = np.array(engine.wheel_commands(v, w))
             assert np.array_equal(got, expected) and np.array_equal(np.signbit(got), np.signbit(expected))

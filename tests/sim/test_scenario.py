@@ -55,12 +55,12 @@ def test_bad_parts_are_refused_naming_field_value_allowed(change, field: str, va
 
 def test_wheel_outside_robot_is_refused() -> None:
     with pytest.raises(ScenarioError, match=r"faults\[0\]\.wheel = 2 .*0 \.\. 1 for robot diff2"):
-        straight(model="diff2", faults=(Fault("imbalance", 2, 0.5, 1.0),))
+        straight(model="diff2", faults=(Fault("out_of_round", 2, 0.5, 1.0),))
 
 
 def test_onset_after_end_is_refused() -> None:
     with pytest.raises(ScenarioError, match=r"faults\[0\]\.onset = 9\.0 .*allowed: 0 \.\. 6 s"):
-        straight(duration=6.0, faults=(Fault("imbalance", 0, 0.5, 9.0),))
+        straight(duration=6.0, faults=(Fault("out_of_round", 0, 0.5, 9.0),))
 
 
 def test_obstacle_outside_arena_is_refused() -> None:
@@ -112,11 +112,11 @@ def test_draw_scenario_depends_only_on_its_arguments() -> None:
 
 def test_draw_scenario_keeps_what_the_options_give() -> None:
     options = ScenarioOptions(
-        duration=30.0, environment="indoor", fault_kind="imbalance", wheel=2, unit_id=5, surface="carpet"
+        duration=30.0, environment="indoor", fault_kind="out_of_round", wheel=2, unit_id=5, surface="carpet"
     )
     drawn = draw_scenario(4, "fault", options)
     assert (drawn.surface, drawn.robot.unit_id, drawn.faults[0].wheel) == ("carpet", 5, 2)
-    assert (drawn.environment, drawn.faults[0].kind, drawn.duration) == ("indoor", "imbalance", 30.0)
+    assert (drawn.environment, drawn.faults[0].kind, drawn.duration) == ("indoor", "out_of_round", 30.0)
 
 
 def test_a_given_surface_changes_the_floor_and_nothing_else() -> None:

@@ -11,6 +11,7 @@ import pytest
 import sim
 from sim import trace_storage
 from sim.trace import (
+    TRACE_FORMAT_VERSION,
     ContactEvents,
     FaultRecord,
     ObstacleRecord,
@@ -74,7 +75,7 @@ def test_round_trip_keeps_every_field_at_its_stated_precision(tmp_path: Path) ->
     path = trace.save(tmp_path / "t.npz")
     assert {"time", "imu_time", "wheel_angle", "mic_pos"} <= _stored_names(path)
     loaded = Trace.load(path)
-    assert loaded.format_version == 2
+    assert loaded.format_version == TRACE_FORMAT_VERSION
     assert loaded.faults == trace.faults
     assert loaded.contacts.obstacle_kind == ("wall",)
     assert loaded.robot.wheel_names == ("fl", "fr")

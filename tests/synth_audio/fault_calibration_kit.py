@@ -9,7 +9,7 @@ wheel from 1 s, over `WINDOW`:
   laws from the defect's size (`synth_audio.faults`), so this is a measurement, not a target.
 - IMU: the z-velocity amplitude at the fault's frequency (rotation, bearing defect or motor shaft
   frequency, at the faulty wheel's own speed) over the healthy drive's; the loose wheel's rattle (random
-  impulses, no line): its z-velocity RMS; imbalance: the forward acceleration at the rotation frequency.
+  impulses, no line): its z-velocity RMS.
 
 Criterion (`test_fault_calibration.py`): every kind is detectable in principle at severity 1, at least
 6 dB over the healthy drive in its band in the audio, or in the IMU (a ratio of at least 2).
@@ -99,13 +99,8 @@ def _zvel(tr: Trace) -> np.ndarray:
     return tr.imu_vel_z[keep] - tr.imu_vel_z[keep].mean()
 
 
-def _forward_acc(tr: Trace) -> np.ndarray:
-    keep = (tr.imu_time > WINDOW[0]) & (tr.imu_time < WINDOW[1])
-    return tr.imu_acc[keep, 0] - tr.imu_acc[keep, 0].mean()
-
-
-def _line(tr: Trace, freq: float, width: float = 0.3, forward: bool = False) -> float:
-    x = _forward_acc(tr) if forward else _zvel(tr)
+def _line(tr: Trace, freq: float, width: float = 0.3) -> float:
+    x = _zvel(tr)
     spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
     f = np.fft.rfftfreq(x.size, 1.0 / tr.imu_rate)
     band = (f > freq - width) & (f < freq + width)
@@ -117,15 +112,13 @@ def imu_ratio(kind: str, severity: float = 1.0) -> float:
     """IMU signature of a fault: faulty over nominal drive, in the same scenario.
 
     The z-velocity amplitude at the fault's frequency (a spectral line) for every kind but the loose
-    wheel, whose rattle is random impulses (no line): its z-velocity RMS; and imbalance, which the floor
-    absorbs vertically: the forward acceleration's line at the rotation frequency.
+    wheel, whose rattle is random impulses (no line): its z-velocity RMS.
     """
     tr, base = trace(kind, severity), trace()
     if kind == "loose_wheel":
         return float(np.std(_zvel(tr)) / np.std(_zvel(base)))
     freq = imu_frequency(tr)
-    forward = kind == "imbalance"
-    return _line(tr, freq, forward=forward) / _line(base, freq, forward=forward)
+    return _line(tr, freq) / _line(base, freq)
 
 
 def table() -> str:

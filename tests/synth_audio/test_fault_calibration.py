@@ -6,24 +6,27 @@ the criterion held here is that severity 1 of every kind is detectable in princi
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from audio_trace_kit import make_trace
 from fault_calibration_kit import audio_level_db, imu_ratio, trace
 
-from sim.trace import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, IMBALANCE_ME, FaultRecord
-from sim.vocab import FAULT_KINDS
-from synth_audio import AudioConfig, render
-from synth_audio.drive import build_drive
-from synth_audio.faults import (
-    DETECTOR_NYQUIST_HZ,
+from sim.faults import (
     FLAT_DEPTH_M,
+    HUB_SPAN,
     PLAY_M,
     SPALL_M,
+    TYRE_CORNERING,
     WHEEL_MASS,
-    fault_band,
-    strike_impulses,
+    defect_size,
+    strike_impulse,
 )
+from sim.trace import BEARING_BALL_DIAMETER, BEARING_PITCH_DIAMETER, FaultRecord, FaultStrikes
+from sim.vocab import FAULT_KINDS
+from synth_audio import AudioConfig, render
+from synth_audio.faults import DETECTOR_NYQUIST_HZ, fault_band
 
 DETECTABLE_DB = 6.0
 """Severity 1 stands at least this far over the healthy drive in its band (audio), or ..."""
@@ -41,45 +44,66 @@ def test_the_fault_sound_grows_with_severity(kind: str) -> None:
     assert audio_level_db(kind, 0.3) < audio_level_db(kind, 0.6) < audio_level_db(kind, 1.0)
 
 
+def _record(kind: str, severity: float, **extra: float) -> FaultRecord:
+    size = defect_size(kind, severity)
+    return FaultRecord(kind, 0, severity, 0.0, 3.0, 1.0, 1000.0, 0.05, size=size, **extra)
+
+
 def test_strike_impulses_follow_the_defect_geometry() -> None:
-    tr = make_trace(0.5, 10.0)
-    drive = build_drive(tr.robot, tr.time, tr.wheel_angle, tr.wheel_speed, tr.wheel_torque, 4410, 44100)
-    corner = tr.robot.mass / 4
-    r = float(tr.robot.wheel_radius[0])
+    corner, r = 5.0, 0.08
     v = np.array([0.5, 1.0])
-
-    def record(kind: str, severity: float) -> FaultRecord:
-        return FaultRecord(kind, 0, severity, 0.0, 1.0, 3.0, 1000.0, 0.05)
-
-    # A flat of depth h strikes like a step of height h: dv = v sin(acos(1 - h / r)).
-    h = 0.5 * FLAT_DEPTH_M
+    # A flat of depth h = s^2 H slaps like a step of height h: dv = v sin(acos(1 - h / r)).
+    h = 0.25 * FLAT_DEPTH_M
     expected = corner * v * np.sqrt(1.0 - (1.0 - h / r) ** 2)
-    np.testing.assert_allclose(strike_impulses(drive, record("flat_spot", 0.5), v), expected, rtol=1e-12)
-    # A hub falling through its play: J = m_wheel sqrt(2 g delta), whatever the speed.
-    loose = strike_impulses(drive, record("loose_wheel", 1.0), v)
-    np.testing.assert_allclose(loose, WHEEL_MASS * np.sqrt(2 * 9.81 * PLAY_M), rtol=1e-12)
+    np.testing.assert_allclose(strike_impulse(_record("flat_spot", 0.5), v, corner, r), expected, rtol=1e-12)
+    # A hub slammed across its play delta by the tyre's force F: J = sqrt(2 m_wheel F delta), any speed.
+    delta = PLAY_M
+    force = max(WHEEL_MASS * 9.81, TYRE_CORNERING * delta / HUB_SPAN)
+    loose = strike_impulse(_record("loose_wheel", 1.0), v, corner, r)
+    np.testing.assert_allclose(loose, np.sqrt(2 * WHEEL_MASS * force * delta), rtol=1e-12)
     # A ball over a spall of length l: its speed over the race times l / d.
     ball = v / r * BEARING_PITCH_DIAMETER / 4
     expected = corner * ball * SPALL_M / BEARING_BALL_DIAMETER
-    np.testing.assert_allclose(strike_impulses(drive, record("bearing", 1.0), v), expected, rtol=1e-12)
+    np.testing.assert_allclose(strike_impulse(_record("bearing", 1.0), v, corner, r), expected, rtol=1e-12)
     with pytest.raises(ValueError, match="not an impulsive fault"):
-        strike_impulses(drive, record("imbalance", 1.0), v)
+        strike_impulse(_record("out_of_round", 1.0), v, corner, r)
 
 
-def test_imbalance_modulates_its_wheel_by_the_centrifugal_load() -> None:
-    # Depth of the 1x/rev modulation = m e omega^2 / (m g / W): the tyre's noise follows its load.
+def test_severity_scales_the_strike_linearly() -> None:
+    # Severity scales the excitation: the sizes follow so that strikes grow in proportion to severity.
+    for kind in ("flat_spot", "bearing", "loose_wheel"):
+        j = [float(strike_impulse(_record(kind, s), np.array([0.8]), 5.0, 0.08)[0]) for s in (0.25, 0.5, 1.0)]
+        assert j[1] / j[0] == pytest.approx(2.0, rel=0.03) and j[2] / j[1] == pytest.approx(2.0, rel=0.03)
+
+
+def test_out_of_round_modulates_its_wheel_by_the_runout_acceleration() -> None:
+    # Depth of the 1x/rev modulation = e omega^2 / g: the tyre's load and sound follow the corner's heave.
     omega = 12.0
-    fault = FaultRecord("imbalance", 0, 1.0, 0.0, 3.0, 1.0, 28.0, 0.12)
+    fault = _record("out_of_round", 1.0)
     config = AudioConfig(ambience=False, rt60_s=0.0, mic_noise_spl_db=float("-inf"), stems=True)
     tr = make_trace(2.0, omega, faults=(fault,))
     stems = render(tr, config, seed=1).stems
     healthy = render(make_trace(2.0, omega), config, seed=1).stems
     wheel = (healthy["motor"] + healthy["rolling"]).astype(np.float64)
     ratio = np.sqrt(np.mean(stems["faults"].astype(np.float64) ** 2) / np.mean(wheel**2))
-    depth = IMBALANCE_ME * omega**2 / (tr.robot.mass * 9.81 / 4)
+    depth = fault.size * omega**2 / 9.81
     # The modulated part is one wheel's sound (a quarter of the power of four similar wheels) times
     # cos(phase): its RMS is depth x sqrt(1/2) x sqrt(1/4) of the four wheels' sound.
     assert ratio == pytest.approx(depth * np.sqrt(0.5) * 0.5, rel=0.35)
+
+
+def test_the_audio_sounds_the_strikes_the_physics_recorded() -> None:
+    # Two strikes of the trace's record ring at their times with amplitudes in the ratio of their impulses.
+    fault = _record("flat_spot", 1.0)
+    config = AudioConfig(ambience=False, rt60_s=0.0, mic_noise_spl_db=float("-inf"), stems=True)
+    strikes = FaultStrikes(np.array([0.5, 1.5]), np.array([0, 0]), np.array([0.4, 1.2]))
+    tr = dataclasses.replace(make_trace(2.0, 10.0, faults=(fault,)), fault_strikes=strikes)
+    stem = np.abs(render(tr, config, seed=1).stems["faults"].astype(np.float64)).sum(axis=1)
+    rate = 44100
+    first, second = stem[int(0.5 * rate) : int(1.0 * rate)], stem[int(1.5 * rate) :]
+    assert np.all(stem[: int(0.49 * rate)] == 0.0)
+    assert np.all(stem[int(1.2 * rate) : int(1.49 * rate)] < 1e-3 * second.max())
+    assert second.max() / first.max() == pytest.approx(3.0, rel=0.35)
 
 
 @pytest.mark.parametrize("kind", FAULT_KINDS)

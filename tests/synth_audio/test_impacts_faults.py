@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -9,10 +10,11 @@ import pytest
 from audio_trace_kit import contacts, make_trace, transients
 from signal_oracles import envelope_spectrum
 
+from sim import faults
+from sim.faults import IMPULSIVE_KINDS, defect_size
 from sim.scenario import TRANSIENT_HEIGHT
-from sim.trace import FaultRecord
+from sim.trace import FaultRecord, FaultStrikes, Trace
 from synth_audio import AudioConfig, render
-from synth_audio.faults import BEARING_SLIP
 from synth_audio.impacts import impact_impulse
 from synth_audio.transients import strike_impulse
 
@@ -41,17 +43,32 @@ def test_impact_onset_within_1ms_of_contact(material: str, t_contact: float, qui
     assert not np.any(left[: int(t_contact * SR)])
 
 
-def _fault_audio(
-    kind: str, order: float, omega: float, quiet: AudioConfig, severity: float = 1.0
-) -> np.ndarray:
-    fault = FaultRecord(kind, 1, 1.0, 0.0, 10.0, order, 2500.0, 0.03)
-    trace = make_trace(3.0, omega, faults=(fault,), surface="carpet")
+def _faulty_trace(fault: FaultRecord, duration: float, omega: float, surface: str = "tile") -> Trace:
+    """`make_trace` at constant `omega` with the fault and, for an impulsive one, the strikes its physics
+    makes there: one each time the wheel passes the defect's angle (`defect_order` a revolution)."""
+    trace = make_trace(duration, omega, faults=(fault,), surface=surface)
+    if fault.kind not in IMPULSIVE_KINDS:
+        return trace
+    step = 2 * np.pi / fault.defect_order / omega
+    times = np.arange(fault.onset + step, min(duration, fault.onset + fault.duration), step)
+    r = float(trace.robot.wheel_radius[fault.wheel])
+    impulse = faults.strike_impulse(fault, np.full(times.size, omega * r), trace.robot.mass / 4, r)
+    strikes = FaultStrikes(times, np.full(times.size, fault.wheel), impulse)
+    return dataclasses.replace(trace, fault_strikes=strikes)
+
+
+def _record(kind: str, severity: float, onset: float, span: float, order: float, hz: float) -> FaultRecord:
+    return FaultRecord(kind, 1, severity, onset, span, order, hz, 0.03, size=defect_size(kind, severity))
+
+
+def _fault_audio(kind: str, order: float, omega: float, quiet: AudioConfig) -> np.ndarray:
+    trace = _faulty_trace(_record(kind, 1.0, 0.0, 10.0, order, 2500.0), 3.0, omega, surface="carpet")
     return render(trace, quiet, seed=5).stems["faults"][:, 1].astype(np.float64)
 
 
 def test_bearing_envelope_spectrum_peaks_at_the_defect_frequency(quiet: AudioConfig) -> None:
     omega, order = 20.0, 3.57
-    defect = order * omega / (2 * np.pi) * (1.0 - np.mean(BEARING_SLIP))  # the balls slip 1-2 %
+    defect = order * omega / (2 * np.pi)
     freqs, mag = envelope_spectrum(_fault_audio("bearing", order, omega, quiet), SR, (2000.0, 3000.0))
     band = (freqs > 2.0) & (freqs < 1.6 * defect)
     assert abs(freqs[band][np.argmax(mag[band])] - defect) < 0.4
@@ -65,17 +82,17 @@ def test_flat_spot_envelope_spectrum_peaks_at_the_rotation_frequency(quiet: Audi
     assert abs(freqs[band][np.argmax(mag[band])] - rotation) < 0.4
 
 
-@pytest.mark.parametrize("kind", ["flat_spot", "imbalance", "bearing", "loose_wheel", "motor_degradation"])
+@pytest.mark.parametrize("kind", ["flat_spot", "out_of_round", "bearing", "loose_wheel", "motor_degradation"])
 def test_fault_sound_scales_with_severity(kind: str, quiet: AudioConfig) -> None:
     def level(severity: float) -> float:
-        fault = FaultRecord(kind, 0, severity, 0.2, 1.0, 3.0, 2000.0, 0.05)
-        stem = render(make_trace(1.5, 12.0, faults=(fault,)), quiet, seed=1).stems["faults"]
+        fault = _record(kind, severity, 0.2, 1.0, 3.0, 2000.0)
+        stem = render(_faulty_trace(fault, 1.5, 12.0), quiet, seed=1).stems["faults"]
         return float(np.sqrt(np.mean(stem.astype(np.float64) ** 2)))
 
     quiet_level, mid, loud = level(0.0), level(0.3), level(1.0)
     assert quiet_level == 0.0
     assert 0.0 < mid < loud
-    assert 20 * np.log10(loud / mid) > 4.0  # impulse laws grow as sqrt(severity) (flat, play) or faster
+    assert 20 * np.log10(loud / mid) > 8.0  # severity scales the excitation linearly: 10.5 dB
 
 
 def test_a_soft_slow_contact_longer_than_the_modal_ring_renders() -> None:

@@ -11,8 +11,8 @@ The probes (limits in `benchmarks.audit.report`):
   (impacts, scrapes and fault sounds muted; same seed, same physics), scored by the audio-only reference
   detector; if it still finds them, it hears something other than the anomaly;
 - level: in each fault test episode, the fault's own sound (the stored mix less its muted re-render)
-  against the rest of the mix in the fault's characteristic band after onset, dB; the median per sub-kind is
-  reported (far below 0 dB, the fault is in the physics but buried in the sound);
+  against the rest of the mix in the fault's characteristic band after onset, dB; the median per sub-kind and
+  per sub-kind and severity bin is reported (far below 0 dB, the fault is buried in the sound);
 - leak: windows of anomaly episodes at least 1 s away from any anomalous sample, against nominal test
   windows, scored by the reference detector;
 - clipping: share of windows of each class within 1 dB of full scale;
@@ -20,7 +20,11 @@ The probes (limits in `benchmarks.audit.report`):
   its spread over the nominal test sequences;
 - ambience: repetition of the environment's noise beds (autocorrelation beyond 1 s), on nominal test
   episodes rendered again with stems;
-- context: the arena's area as a score (anomaly episodes must be drawn like nominal ones).
+- context: the arena's area as a score (anomaly episodes must be drawn like nominal ones);
+- oracle: is each wheel fault physically in the sensors? A privileged condition-monitoring oracle
+  (`benchmarks.audit.oracle`: the true wheel angle, the defect's angle and order) per fault kind and severity
+  bin, at least `oracle.ORACLE_FLOOR` at severity >= 0.75 and higher there than below 0.5; and its control,
+  the fault episodes simulated again at severity 0, at chance.
 
 Scalars carry no direction, so they are judged two-sided (max(AUC, 1 - AUC)); detectors are judged by
 their AUC as it is (higher = flagged as more anomalous).
@@ -49,7 +53,7 @@ import numpy as np
 from tqdm import tqdm
 
 import synth_audio
-from benchmarks.audit import signals
+from benchmarks.audit import oracle, signals
 from benchmarks.audit.report import (
     BEHAVIOUR_LIMIT,
     CLIPPING_LIMIT,
@@ -109,6 +113,7 @@ TRACE_PROBES: tuple[tuple[str, str], ...] = (
     ("deleted", "renders the anomaly episodes again without their own sound"),
     ("level", "compares the fault episodes' audio with its re-render without the fault's sound"),
     ("ambience", "renders the environment's noise beds again"),
+    ("oracle", "reads the true wheel angles and simulates the fault episodes again without their fault"),
 )
 """(group, what it needs) of the probes that need the simulator."""
 
@@ -211,9 +216,9 @@ def _collect(data: Dataset, progress: bool, simulated: bool, has_imu: bool) -> _
 
 def _deleted_windows(
     data: Dataset, rows: list[WindowRow], progress: bool
-) -> tuple[Windows, list[WindowRow], list[tuple[str, float]]]:
+) -> tuple[Windows, list[WindowRow], list[tuple[str, float, float]]]:
     """Anomalous test windows cut from audio rendered again without the anomaly's own sound, and per fault
-    episode (sub-kind, level of its fault sound in the mix: `_fault_level`)."""
+    episode (sub-kind, severity, level of its fault sound in the mix: `_fault_level`)."""
     specs = data.episode_specs()
     by_episode: dict[str, list[WindowRow]] = {}
     for row in rows:
@@ -221,14 +226,15 @@ def _deleted_windows(
             by_episode.setdefault(row.episode, []).append(row)
     parts: list[Windows] = []
     kept: list[WindowRow] = []
-    levels: list[tuple[str, float]] = []
+    levels: list[tuple[str, float, float]] = []
     for episode_id, ep_rows in tqdm(by_episode.items(), desc="audit: re-render muted", disable=not progress):
         spec = specs[episode_id]
         trace = read_trace(data.path / episode_id)
         audio = synth_audio.render(trace, episode_audio_config(spec, MUTED_ANOMALY_SOURCES), seed=spec.seed)
         faulty = [r.sub_kind for r in ep_rows if r.kind == "mechanical"]
         if faulty and trace.faults:
-            levels.append((faulty[0], _fault_level(data.path / episode_id, trace, audio)))
+            level = _fault_level(data.path / episode_id, trace, audio)
+            levels.append((faulty[0], trace.faults[0].severity, level))
         starts = np.array([r.start_s for r in ep_rows])
         parts.append(
             preprocess.frame_windows(
@@ -363,6 +369,7 @@ def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
     rows += _leak_rows(got, refs, labels)
     if simulated:
         rows += _simulator_probes(data, got, refs.s_audio, refs.audio_only, progress)
+        rows += oracle.oracle_rows(oracle.score_faults(data, progress=progress))
     preset = data.preset_name
     seconds = time.perf_counter() - started
     return AuditResult(str(data.path), preset, data.seed, tuple(rows), seconds, audit_key(data))
@@ -591,11 +598,19 @@ def _leak_rows(got: _Collected, refs: _References, labels: _Labels) -> list[Prob
     return rows
 
 
-def _fault_level_rows(levels: list[tuple[str, float]]) -> list[ProbeRow]:
-    """Level: how loud the fault episodes' own sound is in their mix (median over episodes, dB; reported)."""
+def _fault_level_rows(levels: list[tuple[str, float, float]]) -> list[ProbeRow]:
+    """Level: how loud the fault episodes' own sound is in their mix (median over episodes, dB; reported),
+    overall, per sub-kind and per sub-kind and severity bin."""
     rows = []
-    groups = [("mechanical", [v for _, v in levels])]
-    groups += [(f"sub:{k}", [v for s, v in levels if s == k]) for k in sorted({s for s, _ in levels})]
+    kinds = sorted({k for k, _, _ in levels})
+    bins = [oracle.severity_bin(lo) for lo, _ in oracle.SEVERITY_BINS]
+    groups = [("mechanical", [v for _, _, v in levels])]
+    groups += [(f"sub:{k}", [v for s, _, v in levels if s == k]) for k in kinds]
+    groups += [
+        (f"sub:{k} severity {b}", [v for s, sev, v in levels if s == k and oracle.severity_bin(sev) == b])
+        for k in kinds
+        for b in bins
+    ]
     for target, values in groups:
         finite = np.array([v for v in values if math.isfinite(v)])
         if finite.size:

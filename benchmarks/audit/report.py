@@ -43,7 +43,7 @@ class ProbeRow:
     """One line of the audit."""
 
     group: str
-    """Probe family: behaviour, naive, deleted, level, leak, clipping, reference, ambience, context."""
+    """Family: behaviour, naive, deleted, level, leak, clipping, reference, ambience, context, oracle."""
     probe: str
     """What is measured (a scalar's name, a detector)."""
     target: str
@@ -51,22 +51,27 @@ class ProbeRow:
     figure: float
     """The measured figure (AUC, two-sided AUC, share or half-width; see `unit`)."""
     limit: float | None
-    """The largest figure allowed, or None where the figure is only reported."""
+    """The largest figure allowed, or None (only reported, or bounded by `floor` alone)."""
     unit: str
     """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`, `dB`."""
     detail: str = ""
     """Context for a reader: the raw AUC, counts, an interval."""
     skipped: str = ""
     """Why the probe did not run (e.g. imported data has no simulator trace); empty when it ran."""
+    floor: float | None = None
+    """The smallest figure allowed (a probe that must find something: the fault oracle), or None."""
 
     @property
     def status(self) -> str:
-        """PASS or FAIL against the limit; REPORT without one (or without data: NaN); SKIP if not run."""
+        """PASS or FAIL against the limit and the floor; REPORT without either (or without data: NaN); SKIP if
+        not run."""
         if self.skipped:
             return SKIP
-        if self.limit is None or not math.isfinite(self.figure):
+        if (self.limit is None and self.floor is None) or not math.isfinite(self.figure):
             return REPORT
-        return PASS if self.figure <= self.limit else FAIL
+        over = self.limit is not None and self.figure > self.limit
+        under = self.floor is not None and self.figure < self.floor
+        return FAIL if over or under else PASS
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready, with the status."""
@@ -117,6 +122,7 @@ class AuditResult:
         rows = []
         for probe in doc["probes"]:
             row = {name: probe[name] for name in fields}
+            row["floor"] = probe.get("floor")
             row["figure"] = math.nan if row["figure"] is None else float(row["figure"])
             rows.append(ProbeRow(**row))
         seed, seconds = int(doc["seed"]), float(doc["seconds"])
@@ -158,6 +164,8 @@ def markdown(result: AuditResult) -> str:
     ]
     for r in result.rows:
         limit = "-" if r.limit is None else _fmt(r.limit, r.unit)
+        if r.floor is not None:
+            limit = f">= {_fmt(r.floor, r.unit)}" if r.limit is None else f"{_fmt(r.floor, r.unit)}..{limit}"
         lines.append(
             f"| {r.group} | {r.probe} | {r.target} | {_fmt(r.figure, r.unit)} | {r.unit} | {limit} | "
             f"{r.status} | {r.skipped or r.detail} |"

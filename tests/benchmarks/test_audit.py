@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.audit import FAIL, PASS, REPORT, read, run_audit, stored_audit, write
+from benchmarks.audit import FAIL, PASS, REPORT, oracle, read, run_audit, stored_audit, write
 from benchmarks.audit.core import context_starts
+from benchmarks.audit.report import ProbeRow
 from benchmarks.audit.signals import (
     acceleration_peak,
     audio_levels,
@@ -21,6 +22,7 @@ from benchmarks.audit.signals import (
     repetition,
 )
 from benchmarks.cli import main
+from benchmarks.dataset import open_dataset
 from sim.vocab import COLLISION, NORMAL
 from synth_audio.faults import band_power
 
@@ -112,7 +114,8 @@ def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_
     result = run_audit(tiny_dataset, progress=False)
     groups = {r.group for r in result.rows}
     assert groups == {
-        "behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "level", "ambience"
+        "behaviour", "naive", "clipping", "context", "reference", "leak", "deleted", "level", "ambience",
+        "oracle",
     }  # fmt: skip
     probes = {(r.group, r.probe) for r in result.rows}
     for name in ("reversing", "turning_in_place", "standing", "yaw_rate_peak", "peak_deceleration"):
@@ -127,6 +130,13 @@ def test_audit_computes_every_probe_on_the_tiny_dataset(tiny_dataset: Path, tmp_
             assert row.figure >= 0.5
     deleted = [r for r in result.rows if r.group == "deleted" and r.target in ("collision", "mechanical")]
     assert {r.target for r in deleted} == {"collision", "mechanical"}
+    kinds = {r.sub_kind for r in open_dataset(tiny_dataset).rows("test") if r.kind == "mechanical"}
+    oracle_rows = [r for r in result.rows if r.group == "oracle" and r.probe == oracle.ORACLE_PROBE]
+    assert {r.target for r in oracle_rows} >= {f"sub:{k}" for k in kinds}
+    assert all(r.floor == oracle.ORACLE_FLOOR for r in oracle_rows if r.target.endswith("severity 0.75-1"))
+    controls = [r for r in result.rows if r.group == "oracle" and r.probe == oracle.CONTROL_PROBE]
+    assert {r.target for r in controls} == {f"sub:{k}" for k in kinds}
+    assert all(r.limit == oracle.CONTROL_LIMIT and r.unit == "auc2" for r in controls)
     json_path, md_path = write(result, tmp_path / "audit")
     doc = json.loads(json_path.read_text())
     assert doc["passed"] == (not result.failed)
@@ -202,3 +212,18 @@ def test_fault_level_isolates_the_fault_sound_as_its_stem_does(tiny_dataset: Pat
     rest = stems.samples[start:].astype(np.float64) - own
     assert math.isfinite(probe)
     assert probe == pytest.approx(level_db(own, rest, 44100.0, band), abs=1.5)
+
+
+def test_a_probe_with_a_floor_fails_below_it_and_one_with_both_bounds_outside_either() -> None:
+    assert ProbeRow("oracle", "p", "t", 0.95, None, "auc", floor=0.9).status == PASS
+    assert ProbeRow("oracle", "p", "t", 0.85, None, "auc", floor=0.9).status == FAIL
+    assert ProbeRow("oracle", "p", "t", 0.5, 0.65, "auc2", floor=0.0).status == PASS
+    assert ProbeRow("oracle", "p", "t", 0.7, 0.65, "auc2", floor=0.0).status == FAIL
+    assert ProbeRow("oracle", "p", "t", math.nan, None, "auc", floor=0.9).status == REPORT
+
+
+def test_severity_bins_cover_zero_to_one_and_one_belongs_to_the_top_bin() -> None:
+    assert oracle.severity_bin(0.0) == "0-0.5" and oracle.severity_bin(0.49) == "0-0.5"
+    assert oracle.severity_bin(0.5) == "0.5-0.75" and oracle.severity_bin(1.0) == "0.75-1"
+    with pytest.raises(ValueError, match="severity"):
+        oracle.severity_bin(1.2)

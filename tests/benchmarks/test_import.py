@@ -357,11 +357,11 @@ def test_audit_skips_simulator_probes_with_a_reason_and_runs_the_rest(folder: Pa
 
     result = run_audit(folder, progress=False)
     skipped = {r.group for r in result.rows if r.status == SKIP}
-    assert skipped == {"behaviour", "context", "deleted", "level", "ambience"}
+    assert skipped == {"behaviour", "context", "deleted", "level", "ambience", "oracle"}
     assert all("no simulator trace" in r.skipped for r in result.rows if r.status == SKIP)
     ran = {(r.group, r.probe) for r in result.rows if r.status != SKIP}
     assert {("naive", "rms"), ("naive", "acc_peak"), ("reference", "gaussian-early")} <= ran
-    assert "5 probe(s) skipped" in markdown(result) and result.preset == "import-folder"
+    assert "6 probe(s) skipped" in markdown(result) and result.preset == "import-folder"
     audio_only = run_audit(mimii, progress=False)
     assert {r.probe for r in audio_only.rows if r.status == SKIP} == {"every probe", "acc_peak"}
     assert any(r.probe == "gaussian-audio" and r.target == "overall" for r in audio_only.rows)

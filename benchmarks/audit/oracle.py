@@ -1,0 +1,405 @@
+"""The audit's privileged fault oracle: is each wheel fault physically in the sensors?
+
+A detector that fails on faults may be weak, or the faults may not be there. The oracle answers the second
+question with what condition monitoring computes, given information no detector has: the simulator's true
+angle of every wheel, which wheel is faulty, the angle at which its defect meets the floor and the defect's
+order (`sim.trace.FaultRecord`: `phase`, `defect_order`). On each 2 s window of the benchmark (the
+detectors' 4410 Hz audio and the 200 Hz IMU, `benchmarks.condition`) it computes, per fault kind:
+
+- strikes (flat spot, bearing, loose hub): the response in the `STRIKE_GATE_S` after each pass of the defect
+  (the angle crossing phase + 2 pi j / order) over the rest of the window, in the audio's squared envelope in
+  the kind's band (`sim.faults.envelope_band`) and in the vibration power (above `IMU_SPLIT_HZ`) of the seven
+  IMU channels (z-velocity, accelerometer and gyroscope xyz): the time-synchronous average of the defect's
+  strike against everything else;
+- once-per-revolution motion (flat spot, out-of-round wheel, loose hub): the order-1 line of each IMU channel
+  below `IMU_SPLIT_HZ`;
+- level: the audio envelope's mean (and, for a loose hub's rattle, the IMU's vibration power);
+- worn gears: the gear-mesh line and its motor-shaft sidebands in the raw audio over the lines between them
+  (`MESH_NEIGHBOURS`), and the motor-shaft order line of the IMU's vibration.
+
+A fault window is looked at through its faulty wheel at its defect's angle and order; a nominal window
+through every wheel at `NOMINAL_PHASES` angles (`nominal_views`). Each feature is compared with its
+distribution over nominal training windows (looked at the same way); a window's score is the rarity of its
+most extreme feature (`Baseline`): an analyst's alarm on any one indicator. Reported per fault kind and
+severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
+bootstrap interval; at severity >= 0.75 each kind must reach `ORACLE_FLOOR`.
+
+The control keeps it honest: every fault episode simulated and rendered again with its fault at severity
+0 (same seed, same driving, same defect angle), scored on the same windows through the same view, must be
+at chance (two-sided AUC at most `CONTROL_LIMIT`): the oracle finds the fault, not the episode.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import sim
+import synth_audio
+from benchmarks import condition
+from benchmarks.audit.report import ProbeRow
+from benchmarks.dataset import Dataset, WindowRow, episode_audio_config
+from benchmarks.episode import read_episode, read_trace
+from benchmarks.uncertainty import Interval, auc_interval
+from msvdd import preprocess
+from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE
+from sim.faults import BEARING_SLIP, IMPULSIVE_KINDS, defect_order, envelope_band
+from sim.random_scenarios import scale_speeds
+from sim.trace import FaultRecord, RobotInfo, Trace
+
+ORACLE_FLOOR = 0.90
+"""Least AUC the oracle must reach on each fault kind at severity >= 0.75."""
+CONTROL_LIMIT = 0.65
+"""Most the oracle may separate the fault episodes re-simulated at severity 0 (two-sided AUC)."""
+SEVERITY_BINS: tuple[tuple[float, float], ...] = ((0.0, 0.5), (0.5, 0.75), (0.75, 1.0))
+"""Severity bins the oracle and the level probe are reported in (low included; the last includes 1)."""
+ENVELOPE_BLOCK = 21
+"""Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
+TRAIN_WINDOWS = 1500
+"""Most nominal training windows the oracle's baseline is fitted on (evenly over the episodes)."""
+IMU_SPLIT_HZ = 4.0
+"""IMU content below this is the chassis' smooth motion (tracked as it is), above it vibration (tracked as
+its power)."""
+NOMINAL_PHASES = 4
+"""Defect angles (evenly spaced) a nominal window is looked at with, for each wheel."""
+STRIKE_GATE_S = 0.05
+"""How long before and after a pass of the defect its response is read, s (a flat's dip before its slap,
+the tyre's and chassis' ring after a strike)."""
+TOP_FEATURES = 3
+"""How many of a window's most extreme features its score sums (the evidence of the strongest indicators,
+which the others, quiet for this fault, cannot dilute)."""
+MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
+"""Orders around a gear-mesh line (between its sidebands) whose lines give its noise floor."""
+
+
+def severity_bin(severity: float) -> str:
+    """The label of the `SEVERITY_BINS` bin holding `severity`, e.g. `0.75-1`."""
+    for lo, hi in SEVERITY_BINS:
+        if lo <= severity < hi or (hi == SEVERITY_BINS[-1][1] and severity == hi):
+            return f"{lo:g}-{hi:g}"
+    raise ValueError(f"severity = {severity!r} is invalid; allowed: 0 .. 1")
+
+
+@dataclass(frozen=True)
+class Signals:
+    """One episode's detector-rate signals and the simulator's true wheel angles."""
+
+    audio: np.ndarray
+    """(n, 2) audio at 4410 Hz."""
+    imu7: np.ndarray
+    """(m, 7) z-velocity, accelerometer xyz, gyroscope xyz at 200 Hz."""
+    angle: np.ndarray
+    """(m, W) true wheel angles at the IMU samples, rad."""
+
+
+def trace_signals(trace: Trace, audio44k: np.ndarray) -> Signals:
+    """The detector-rate signals of a trace and its rendered (n, 2) audio."""
+    angle = np.stack(
+        [np.interp(trace.imu_time, trace.time, trace.wheel_angle[:, w]) for w in range(trace.n_wheels)],
+        axis=1,
+    )
+    imu7 = np.concatenate([trace.imu_vel_z[:, None], trace.imu_acc, trace.imu_gyro], axis=1)
+    return Signals(preprocess.decimate_audio(audio44k), imu7, angle)
+
+
+def episode_signals(folder: Path) -> Signals:
+    """`trace_signals` of a stored episode (its audio as stored)."""
+    episode = read_episode(Path(folder))
+    return trace_signals(read_trace(episode.path), episode.audio)
+
+
+def _cut(x: np.ndarray, starts: np.ndarray, rate: float, length: int) -> np.ndarray:
+    i0 = np.rint(starts * rate).astype(np.int64)
+    return np.asarray(x[i0[:, None] + np.arange(length)])
+
+
+@dataclass(frozen=True)
+class View:
+    """Through which wheel, at which defect angle and order a window is looked at."""
+
+    kind: str
+    """Fault kind (which features)."""
+    wheel: int
+    """The wheel whose angle is tracked."""
+    phase: float
+    """Wheel angle at which the defect meets the floor (`sim.trace.FaultRecord.phase`), rad."""
+    order: float
+    """Defect events per revolution (`sim.trace.FaultRecord.defect_order`)."""
+    shaft: float
+    """Motor shaft revolutions per wheel revolution (worn gears' sidebands and torque ripple)."""
+
+
+def fault_view(record: FaultRecord, robot: RobotInfo) -> View:
+    """How the oracle looks at a window of a fault episode: through its defect."""
+    return View(record.kind, record.wheel, record.phase, record.defect_order, float(robot.gear_ratio))
+
+
+def nominal_views(kind: str, robot: RobotInfo) -> list[View]:
+    """How the oracle looks at a nominal window for `kind`: every wheel, `NOMINAL_PHASES` defect angles (one
+    for worn gears, whose features do not depend on it), the kind's order (a bearing's at the middle of its
+    slip range)."""
+    order = defect_order(kind, robot) * (1.0 - 0.5 * sum(BEARING_SLIP) if kind == "bearing" else 1.0)
+    count = 1 if kind == "motor_degradation" else NOMINAL_PHASES
+    phases = 2 * np.pi * np.arange(count) / count
+    shaft = float(robot.gear_ratio)
+    return [View(kind, w, float(p), order, shaft) for w in range(len(robot.wheel_names)) for p in phases]
+
+
+def _gated(power: np.ndarray, angle: np.ndarray, view: View, rate: float) -> np.ndarray:
+    """(k,) mean of (k, n) `power` within `STRIKE_GATE_S` of each pass of the defect (the angle passing
+    phase + 2 pi j / order) over its mean elsewhere; 1 for a window without a pass (floored at 1e-3)."""
+    cycles = np.floor(view.order * (angle - view.phase) / (2 * np.pi))
+    hit = np.zeros(angle.shape, dtype=np.int64)
+    hit[:, 1:] = cycles[:, 1:] != cycles[:, :-1]
+    span = max(1, round(STRIKE_GATE_S * rate))
+    counts = np.concatenate([np.zeros((len(hit), span + 1), np.int64), np.cumsum(hit, axis=1)], axis=1)
+    counts = np.concatenate([counts, np.repeat(counts[:, -1:], span, axis=1)], axis=1)
+    n = angle.shape[1]
+    gate = (counts[:, 2 * span + 1 : 2 * span + 1 + n] - counts[:, :n]) > 0
+    inside = (power * gate).sum(axis=1) / np.maximum(gate.sum(axis=1), 1)
+    outside = (power * ~gate).sum(axis=1) / np.maximum((~gate).sum(axis=1), 1)
+    ratio = np.where(gate.any(axis=1), inside / np.maximum(outside, 1e-30), 1.0)
+    return np.asarray(np.maximum(ratio, 1e-3))
+
+
+def _line(x: np.ndarray, angle: np.ndarray, order: float) -> np.ndarray:
+    """(k,) log of the order-`order` line of (k, n) signals, floored at what noise gives (1 / sqrt(n))."""
+    line = condition.order_lines(x, angle, np.array([order]))[:, 0]
+    return np.asarray(np.log(np.maximum(line, 1.0 / np.sqrt(x.shape[-1]))))
+
+
+def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list[np.ndarray]:
+    """(k, F) oracle features of the windows at `starts` (s), looked at through each of `views` (all of one
+    fault kind; see the module)."""
+    starts = np.asarray(starts, dtype=np.float64)
+    kind = views[0].kind
+    imu = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN)  # (k, 400, 7)
+    audio = _cut(sig.audio, starts, AUDIO_RATE, AUDIO_LEN).sum(axis=-1)  # (k, 8820) mono
+    t_imu = np.arange(IMU_LEN) / IMU_RATE
+    angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
+    out: list[np.ndarray] = []
+    if kind == "motor_degradation":
+        t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
+        vibration = condition.band_pass(imu.transpose(0, 2, 1), IMU_RATE, (IMU_SPLIT_HZ, IMU_RATE / 2))
+        for v in views:
+            angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angles[v.wheel]])
+            offsets = np.array([0.0, -v.shaft, v.shaft, *MESH_NEIGHBOURS])
+            lines = condition.order_lines(audio, angle_audio, v.order + offsets)
+            floor = np.maximum(np.median(lines[:, 3:], axis=1), 1e-12)
+            parts = [np.log(np.maximum(lines[:, j], 1e-12) / floor) for j in range(3)]
+            parts += [_line(vibration[:, c], angles[v.wheel], v.shaft) for c in range(imu.shape[-1])]
+            out.append(np.stack(parts, axis=1))
+        return out
+    env = condition.squared_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
+    env = env.reshape(len(starts), -1, ENVELOPE_BLOCK).mean(axis=-1)  # (k, 420) at 210 Hz
+    t_env = (np.arange(env.shape[1]) + 0.5) * ENVELOPE_BLOCK / AUDIO_RATE
+    level = np.log(env.mean(axis=-1) + 1e-20)
+    channels = imu.transpose(0, 2, 1)  # (k, 7, 400)
+    power = condition.band_pass(channels, IMU_RATE, (IMU_SPLIT_HZ, IMU_RATE / 2)) ** 2
+    motion = condition.band_pass(channels, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
+    smooth = condition.band_pass(channels, IMU_RATE, (0.3, IMU_SPLIT_HZ))
+    for v in views:
+        angle = angles[v.wheel]
+        parts = [level]
+        if kind in IMPULSIVE_KINDS:
+            angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
+            parts.append(np.log(_gated(env, angle_env, v, AUDIO_RATE / ENVELOPE_BLOCK)))
+        for c in range(channels.shape[1]):
+            if kind in IMPULSIVE_KINDS:
+                parts.append(np.log(_gated(motion[:, c], angle, v, IMU_RATE)))
+            if kind in ("out_of_round", "loose_wheel", "flat_spot"):
+                parts.append(_line(smooth[:, c], angle, 1.0))
+            if kind == "loose_wheel":
+                parts.append(np.log(power[:, c].mean(axis=-1) + 1e-20))
+        out.append(np.stack(parts, axis=1))
+    return out
+
+
+@dataclass
+class Baseline:
+    """Each feature's distribution over nominal windows; a window's score is its most extreme feature."""
+
+    sorted_values: np.ndarray
+    """(n, F) each feature's nominal values, sorted."""
+
+    @classmethod
+    def fit(cls, x: np.ndarray) -> Baseline:
+        """Fit on (n, F) nominal rows."""
+        return cls(np.sort(np.asarray(x, dtype=np.float64), axis=0))
+
+    def score(self, x: np.ndarray) -> np.ndarray:
+        """(k,) -log10 of the smallest upper-tail probability of any feature of (k, F) rows under the nominal
+        distribution (empirical, counting the row itself: at most log10(n + 1)). Features are compared
+        each on its own scale, so one far beyond nominal decides, whatever the others do."""
+        n = self.sorted_values.shape[0]
+        above = np.stack(
+            [n - np.searchsorted(self.sorted_values[:, f], x[:, f], side="left") for f in range(x.shape[1])],
+            axis=1,
+        )
+        tail = (above + 1.0) / (n + 1.0)
+        evidence = np.sort(-np.log10(tail), axis=1)[:, ::-1]
+        return np.asarray(evidence[:, :TOP_FEATURES].sum(axis=1))
+
+
+@dataclass(frozen=True)
+class Scored:
+    """The oracle's scores of one fault kind: fault windows through their defect, nominal ones through
+    every `nominal_views` view."""
+
+    kind: str
+    """Fault kind."""
+    positive: np.ndarray
+    """(p,) scores of the kind's fault windows."""
+    positive_episode: np.ndarray
+    """(p,) their episodes."""
+    positive_severity: np.ndarray
+    """(p,) their episodes' severities."""
+    negative: np.ndarray
+    """(q,) scores of the nominal test windows, every view in turn."""
+    negative_episode: np.ndarray
+    """(q,) their episodes."""
+    control: np.ndarray | None = None
+    """(p,) scores of the same windows re-simulated with the fault at severity 0 (None: not run)."""
+
+
+def _train_rows(data: Dataset) -> list[WindowRow]:
+    rows = data.rows("train")
+    if len(rows) <= TRAIN_WINDOWS:
+        return rows
+    pick = np.linspace(0, len(rows) - 1, TRAIN_WINDOWS).round().astype(np.int64)
+    return [rows[i] for i in pick]
+
+
+def _by_episode(rows: list[WindowRow]) -> dict[str, np.ndarray]:
+    out: dict[str, list[float]] = {}
+    for r in rows:
+        out.setdefault(r.episode, []).append(r.start_s)
+    return {e: np.array(s) for e, s in out.items()}
+
+
+def control_trace(data: Dataset, episode_id: str) -> tuple[Trace, synth_audio.Audio]:
+    """A fault episode simulated and rendered again with its faults at severity 0 (the same seed, driving
+    and defect records)."""
+    spec = data.episode_specs()[episode_id]
+    scenario = sim.draw_scenario(spec.seed, spec.category, spec.options)
+    scenario = scale_speeds(scenario, spec.drive_speed_scale, spec.approach_speed_scale)
+    scenario = scenario.replace(faults=tuple(dataclasses.replace(f, severity=0.0) for f in scenario.faults))
+    trace = sim.simulate(scenario).at_storage_precision()
+    return trace, synth_audio.render(trace, episode_audio_config(spec), seed=spec.seed)
+
+
+def score_faults(
+    data: Dataset, control: bool = True, progress: bool = False, kinds: tuple[str, ...] | None = None
+) -> list[Scored]:
+    """The oracle's scores of every fault kind (or of `kinds`) of a simulated dataset's test split."""
+    from tqdm import tqdm
+
+    test = data.rows("test")
+    faults = [r for r in test if r.kind == "mechanical" and (kinds is None or r.sub_kind in kinds)]
+    if not faults:
+        return []
+    found = sorted({r.sub_kind for r in faults})
+    robot = read_trace(data.path / faults[0].episode).robot
+    views = {k: nominal_views(k, robot) for k in found}
+
+    def nominal(episodes: dict[str, np.ndarray], what: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        feats: dict[str, list[np.ndarray]] = {k: [] for k in found}
+        names: dict[str, list[str]] = {k: [] for k in found}
+        for episode_id, starts in tqdm(episodes.items(), desc=what, disable=not progress):
+            sig = episode_signals(data.path / episode_id)
+            for k in found:
+                feats[k] += window_features(sig, starts, views[k])
+                names[k] += [episode_id] * (len(starts) * len(views[k]))
+        return {k: (np.concatenate(feats[k]), np.array(names[k])) for k in found}
+
+    train = nominal(_by_episode(_train_rows(data)), "oracle: train")
+    fitted = {k: Baseline.fit(x) for k, (x, _) in train.items()}
+    normal = nominal(_by_episode([r for r in test if r.kind == "normal"]), "oracle: nominal test")
+    severities = data.fault_severities()
+    out = []
+    for k in found:
+        pos, ctl, eps, sev = [], [], [], []
+        for episode_id, starts in tqdm(_by_episode([r for r in faults if r.sub_kind == k]).items(),
+                                       desc=f"oracle: {k}", disable=not progress):  # fmt: skip
+            trace = read_trace(data.path / episode_id)
+            view = fault_view(trace.faults[0], trace.robot)
+            sig = trace_signals(trace, read_episode(data.path / episode_id).audio)
+            pos.append(fitted[k].score(window_features(sig, starts, [view])[0]))
+            if control:
+                trace0, audio0 = control_trace(data, episode_id)
+                sig0 = trace_signals(trace0, audio0.samples)
+                ctl.append(fitted[k].score(window_features(sig0, starts, [view])[0]))
+            eps += [episode_id] * len(starts)
+            sev += [severities.get(episode_id, math.nan)] * len(starts)
+        x_neg, neg_eps = normal[k]
+        out.append(
+            Scored(
+                kind=k,
+                positive=np.concatenate(pos),
+                positive_episode=np.array(eps),
+                positive_severity=np.array(sev),
+                negative=fitted[k].score(x_neg),
+                negative_episode=neg_eps,
+                control=np.concatenate(ctl) if control else None,
+            )
+        )
+    return out
+
+
+ORACLE_PROBE = "privileged oracle (true wheel angle, defect angle and order)"
+"""The oracle probe's name in the audit table."""
+CONTROL_PROBE = "oracle on the same episodes re-simulated at severity 0"
+"""The control probe's name."""
+GRADIENT_PROBE = "oracle AUC at severity >= 0.75 less at < 0.5"
+"""The severity gradient probe's name: a more severe defect must be easier to find."""
+
+
+def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
+    """The audit's `oracle` rows: per fault kind its AUC overall and per severity bin (the top bin with the
+    floor `ORACLE_FLOOR`), the severity gradient (top bin over the bottom one, at least 0) and the control
+    (two-sided, at most `CONTROL_LIMIT`)."""
+    rows: list[ProbeRow] = []
+    for s in scored:
+        bins = np.array([severity_bin(v) for v in s.positive_severity])
+        top, bottom = severity_bin(1.0), severity_bin(0.0)
+        aucs: dict[str, float] = {}
+        for name in ["all", *sorted(set(bins))]:
+            mask = np.ones(bins.size, dtype=bool) if name == "all" else bins == name
+            ci = _interval(s.positive[mask], s.negative, s.positive_episode[mask], s.negative_episode)
+            aucs[name] = ci.value
+            target = f"sub:{s.kind}" + ("" if name == "all" else f" severity {name}")
+            rows.append(
+                ProbeRow(
+                    "oracle", ORACLE_PROBE, target, ci.value, None, "auc",
+                    f"[{ci.low:.3f}, {ci.high:.3f}]; {int(mask.sum())} windows of "
+                    f"{len(set(s.positive_episode[mask]))} episodes",
+                    floor=ORACLE_FLOOR if name == top else None,
+                )
+            )  # fmt: skip
+        if top in aucs and bottom in aucs:
+            rows.append(
+                ProbeRow(
+                    "oracle", GRADIENT_PROBE, f"sub:{s.kind}", aucs[top] - aucs[bottom], None, "auc",
+                    f"{aucs[top]:.3f} - {aucs[bottom]:.3f}", floor=0.0,
+                )
+            )  # fmt: skip
+        if s.control is not None:
+            ci = _interval(s.control, s.negative, s.positive_episode, s.negative_episode)
+            rows.append(
+                ProbeRow(
+                    "oracle", CONTROL_PROBE, f"sub:{s.kind}", max(ci.value, 1.0 - ci.value), CONTROL_LIMIT,
+                    "auc2", f"AUC {ci.value:.3f} [{ci.low:.3f}, {ci.high:.3f}]",
+                )
+            )  # fmt: skip
+    return rows
+
+
+def _interval(positive: np.ndarray, negative: np.ndarray, pos_ep: np.ndarray, neg_ep: np.ndarray) -> Interval:
+    """AUC of `positive` over `negative` scores with its episode-cluster bootstrap interval."""
+    scores = np.r_[positive, negative]
+    labels = np.r_[np.ones(positive.size, dtype=bool), np.zeros(negative.size, dtype=bool)]
+    return auc_interval(scores, labels, np.r_[pos_ep, neg_ep])

@@ -1,9 +1,10 @@
 """Which sensors a dataset carries and which a method reads; a method that needs a missing one is refused.
 
-A generated dataset carries audio and IMU. A dataset imported from recordings (`msvdd-bench import`) may
-carry audio only (the MIMII / DCASE layouts): its `manifest.json` lists `modalities`, its episodes hold
-all-zero IMU placeholders (the window contract needs the arrays), and every method whose registry modality
-reads the IMU (`audio+imu`, `imu`) is refused on it with `MissingModalityError` rather than fitted on zeros.
+A generated dataset carries audio, IMU and wheel odometry (the encoders). A dataset imported from
+recordings (`msvdd-bench import`) may carry audio only (the MIMII / DCASE layouts): its `manifest.json`
+lists `modalities`, its episodes hold all-zero IMU placeholders (the window contract needs the arrays), and
+every method whose registry modality reads the IMU (`audio+imu`, `imu`) or the encoders is refused on it
+with `MissingModalityError` rather than fitted on zeros.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ METHOD_READS: dict[str, tuple[str, ...]] = {
     "audio+imu": ("audio", "imu"),
     "audio": ("audio",),
     "imu": ("imu",),
+    "audio+imu+odometry": ("audio", "imu", "odometry"),
 }
 """Sensors each registry modality (`benchmarks.methods.registry.MODALITIES`) reads."""
 

@@ -1,9 +1,10 @@
 """A tiny synthetic audio-IMU task for tests and smoke runs (not the benchmark's data).
 
-Nominal windows: a few motor-like tones whose frequency follows a random speed, broadband noise, and a
-smooth IMU z-velocity. Anomalous windows add what collisions and faults add in the real data: a decaying
-broadband impact in both audio channels with a matching IMU spike, or a periodic click train with IMU
-ripple. Anomalies are of similar RMS to the nominal windows, so energy alone does not separate them.
+Nominal windows: a few motor-like tones whose frequency follows a random speed, broadband noise, a smooth
+IMU z-velocity, six IMU axes and four wheel encoders. Anomalous windows add what collisions and faults add
+in the real data: a decaying broadband impact in both audio channels with a matching IMU spike, or a
+periodic click train with IMU ripple. Anomalies are of similar RMS to the nominal windows, so energy alone
+does not separate them.
 """
 
 from __future__ import annotations
@@ -54,7 +55,15 @@ def toy_windows(n_normal: int, n_anomalous: int, seed: int) -> tuple[Windows, np
     imu6 = 0.03 * rng6.standard_normal((n, IMU_LEN, 6))
     imu6[:, :, 2] += 9.81
     imu6[:, :, 2] += np.gradient(imu, 1.0 / IMU_RATE, axis=1)
+    # Four wheel encoders from their own generator: the wheels turn at the speed the motor tones follow
+    # (0.08 m wheels), each with its own small slip.
+    rng_w = np.random.default_rng([seed, 7])
+    omega = speed[:, :, None] / 0.08 * (1.0 + 0.02 * rng_w.standard_normal((n, 1, 4)))
+    odometry = omega * t_i[None, :, None]
     windows = Windows(
-        audio=stereo.astype(np.float32), imu=imu.astype(np.float32), imu6=imu6.astype(np.float32)
+        audio=stereo.astype(np.float32),
+        imu=imu.astype(np.float32),
+        imu6=imu6.astype(np.float32),
+        odometry=odometry.astype(np.float32),
     )
     return windows, labels

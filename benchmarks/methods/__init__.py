@@ -12,6 +12,7 @@ from benchmarks.methods import frames as _frames
 from benchmarks.methods import gaussian as _gaussian
 from benchmarks.methods import msvdd_family as _msvdd
 from benchmarks.methods import naive as _naive
+from benchmarks.methods import orders as _orders
 from benchmarks.methods import shallow as _shallow
 from benchmarks.methods.base import SCALES
 from benchmarks.methods.registry import (
@@ -33,6 +34,7 @@ _deep.register_methods()
 _deep_if.register_methods()
 _dcase_ae.register_methods()
 _gaussian.register_methods()
+_orders.register_methods()
 _frames.register_methods()
 
 __all__ = [

@@ -17,8 +17,8 @@ FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive", "
 (densities of the inputs without the M-SVDD network), naive sanity baselines, and detectors from outside
 the project (`module:Class`, `benchmarks.methods.external`; never in the registry itself)."""
 
-MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu")
-"""Which sensors a method reads."""
+MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu", "audio+imu+odometry")
+"""Which sensors a method reads (odometry: the wheel encoders)."""
 
 DEVICES: tuple[str, ...] = ("cpu", "cuda", "auto")
 """Torch devices a method may be built for ("auto" = CUDA when available)."""

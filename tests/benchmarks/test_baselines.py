@@ -205,6 +205,7 @@ def test_registry_lists_every_family_of_the_paper() -> None:
         "gaussian-audio",
         "gaussian-imu",
         "context-net-frames",
+        "order-reference",
     }
     assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
 

@@ -36,7 +36,7 @@ def plant_obvious_anomaly(windows: Windows, seed: int) -> Windows:
     i0, i1 = IMU_LEN // 2 - 2, IMU_LEN // 2 + 3
     imu[:, i0:i1] += 1.0
     imu6[:, i0:i1, :] += 20.0
-    return Windows(audio=audio, imu=imu, imu6=imu6)
+    return Windows(audio=audio, imu=imu, imu6=imu6, odometry=windows.odometry)
 
 
 @dataclass(frozen=True)

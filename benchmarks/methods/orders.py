@@ -1,0 +1,153 @@
+"""The fault-aware reference detector: condition monitoring on the wheel encoders, without privileged
+information.
+
+What a vibration analyst who knows the robot's drive train computes on every 2 s window, tracking each
+wheel's angle from its encoder (the odometry modality, `Windows.odometry`), for every wheel in turn (the
+faulty wheel, the defect's angle and the balls' slip are unknown to it):
+
+- the order-1 line of the chassis' smooth motion (each IMU channel below `SPLIT_HZ`): a wheel that rides up
+  and down or wobbles once per revolution;
+- the time-synchronous average's strength of the IMU's vibration power (each channel, 0.5-100 Hz) over one
+  revolution and over one ball pass, and of the audio's squared envelope over one revolution in the tyre's
+  band and over one ball pass in the hub's band: a strike that repeats at the same wheel angle;
+- the gear-mesh line of the audio over the lines between its sidebands, and the two motor-shaft sidebands;
+- not per wheel: the audio envelope's level in the tyre's, the hub's and the loose hub's bands, and each IMU
+  channel's vibration power.
+
+The orders come from the drive train of the robot model (`sim.faults.bpfo_order`, pinion teeth x gear
+ratio); a robot team knows its own. Features are logarithms, floored where noise leaves them (a line at
+1 / sqrt(n), a strength at 1); their Gaussian over nominal training windows is the Ledoit-Wolf one of the
+reference detector (`benchmarks.methods.gaussian`), and the score is the squared Mahalanobis distance.
+A window without odometry is refused.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Self
+
+import numpy as np
+from sklearn.covariance import LedoitWolf
+
+from benchmarks import condition
+from benchmarks.methods.base import WindowDetector
+from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError, Windows
+from sim.faults import BEARING_SLIP, bpfo_order, envelope_band
+from sim.robot import DRIVE_TRAINS
+
+SPLIT_HZ = 4.0
+"""IMU content below this is smooth motion (its order-1 line), above it vibration (its power)."""
+ENVELOPE_BLOCK = 21
+"""Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
+MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
+"""Orders around the gear-mesh line (between its sidebands) whose lines give its noise floor."""
+BANDS: tuple[str, ...] = ("flat_spot", "bearing", "loose_wheel")
+"""Fault kinds whose audio band (`sim.faults.envelope_band`) the detector reads."""
+_STD_FLOOR = 1e-8
+_CHUNK = 64
+
+
+def _log_line(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    lines = condition.order_lines(x, angle, orders)
+    return np.asarray(np.log(np.maximum(lines, 1.0 / np.sqrt(x.shape[-1]))))
+
+
+def _log_sync(x: np.ndarray, angle: np.ndarray, order: float) -> np.ndarray:
+    return np.asarray(np.log(np.maximum(condition.synchronous_strength(x, angle, order), 1.0)))
+
+
+def order_features(batch: Windows, model: str = "skid4") -> np.ndarray:
+    """(N, F) the detector's features of a window batch (see the module); F depends on the wheel count."""
+    if batch.odometry is None or batch.imu6 is None:
+        raise WindowError("odometry or imu6 is None: the order reference reads wheel encoders and IMU axes")
+    out = [_chunk_features(batch.subset(slice(i, i + _CHUNK)), model) for i in range(0, len(batch), _CHUNK)]
+    return np.concatenate(out, axis=0)
+
+
+def _chunk_features(batch: Windows, model: str) -> np.ndarray:
+    drive = DRIVE_TRAINS[model]
+    bpfo = bpfo_order() * (1.0 - 0.5 * sum(BEARING_SLIP))
+    mesh = float(drive.pinion_teeth * drive.gear_ratio)
+    assert batch.odometry is not None and batch.imu6 is not None
+    imu = np.concatenate([batch.imu[:, :, None], batch.imu6], axis=2).transpose(0, 2, 1)  # (k, 7, 400)
+    audio = batch.audio.astype(np.float64).sum(axis=-1)  # (k, 8820)
+    smooth = condition.band_pass(imu, IMU_RATE, (0.3, SPLIT_HZ))
+    vibration = condition.band_pass(imu, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
+    envelopes = {}
+    for kind in BANDS:
+        env = condition.squared_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
+        envelopes[kind] = env.reshape(len(audio), -1, ENVELOPE_BLOCK).mean(axis=-1)  # (k, 420) at 210 Hz
+    t_imu = np.arange(IMU_LEN) / IMU_RATE
+    t_env = (np.arange(AUDIO_LEN // ENVELOPE_BLOCK) + 0.5) * ENVELOPE_BLOCK / AUDIO_RATE
+    t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
+    parts: list[np.ndarray] = [np.log(env.mean(axis=-1) + 1e-20)[:, None] for env in envelopes.values()]
+    parts.append(np.log(vibration.mean(axis=-1) + 1e-20))
+    offsets = np.array([0.0, -drive.gear_ratio, drive.gear_ratio, *MESH_NEIGHBOURS])
+    for w in range(batch.odometry.shape[2]):
+        angle = batch.odometry[:, :, w].astype(np.float64)
+        angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
+        angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angle])
+        for c in range(imu.shape[1]):
+            parts.append(_log_line(smooth[:, c], angle, np.array([1.0])))
+            parts.append(_log_sync(vibration[:, c], angle, 1.0)[:, None])
+            parts.append(_log_sync(vibration[:, c], angle, bpfo)[:, None])
+        parts.append(_log_sync(envelopes["flat_spot"], angle_env, 1.0)[:, None])
+        parts.append(_log_sync(envelopes["bearing"], angle_env, bpfo)[:, None])
+        lines = condition.order_lines(audio, angle_audio, mesh + offsets)
+        floor = np.maximum(np.median(lines[:, 3:], axis=1, keepdims=True), 1e-12)
+        parts.append(np.log(np.maximum(lines[:, :3], 1e-12) / floor))
+    return np.concatenate(parts, axis=1)
+
+
+class OrderReference(WindowDetector):
+    """Order-tracked condition-monitoring features per wheel, Ledoit-Wolf Gaussian, squared Mahalanobis."""
+
+    kind = "order-reference"
+
+    def __init__(self, model: str = "skid4") -> None:
+        super().__init__()
+        if model not in DRIVE_TRAINS:
+            raise ValueError(f"model {model!r} is unknown; allowed: {', '.join(DRIVE_TRAINS)}")
+        self.model = model
+        self.mean = np.zeros(0)
+        self.std = np.zeros(0)
+        self.precision = np.zeros((0, 0))
+
+    def _fit(self, train: Windows, val: Windows | None) -> None:
+        x = order_features(train, self.model)
+        self.mean = x.mean(axis=0)
+        self.std = np.maximum(x.std(axis=0), _STD_FLOOR)
+        z = (x - self.mean) / self.std
+        self.precision = LedoitWolf(assume_centered=True).fit(z).precision_
+
+    def _score(self, batch: Windows) -> np.ndarray:
+        x = order_features(batch, self.model)
+        if x.shape[1] != self.mean.size:
+            raise WindowError(f"the batch gives {x.shape[1]} features; the model was fit on {self.mean.size}")
+        z = (x - self.mean) / self.std
+        return np.einsum("ij,jk,ik->i", z, self.precision, z)
+
+    def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        return {"model": self.model}, {"mean": self.mean, "std": self.std, "precision": self.precision}
+
+    @classmethod
+    def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
+        detector = cls(str(header["model"]))
+        detector.mean, detector.std, detector.precision = arrays["mean"], arrays["std"], arrays["precision"]
+        return detector
+
+
+def register_methods() -> None:
+    """Register `order-reference`."""
+    from benchmarks.methods.registry import register
+
+    register(
+        "order-reference",
+        lambda seed, scale, device: OrderReference(),
+        cls=OrderReference,
+        family="reference",
+        modality="audio+imu+odometry",
+        description="reference: order-tracked condition monitoring on the wheel encoders (synchronous "
+        "averages, order lines, gear-mesh line) per wheel, Ledoit-Wolf Mahalanobis distance",
+        label="Order tracking, wheel encoders",
+        config="OrderReference(model='skid4')",
+    )

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from sim import vocab
-from sim.scenario import TRANSIENT_HEIGHT, Scenario
+from sim.scenario import Scenario
 from sim.trace import ContactEvents, FaultRecord, ObstacleRecord, TransientEvents
+from sim.vocab import TRANSIENT_HEIGHT
 
 MERGE_GAP = 0.05
 """Contacts separated by less than this are one event, s."""

@@ -74,16 +74,6 @@ OBSTACLE_MASS: dict[str, float] = {kind: STRUCK_MASS[kind] for kind in ("box", "
 """Obstacle kinds that are free bodies (pushed when hit) and their mass, kg (`sim.trace.STRUCK_MASS`); the
 others are fixed (a pedestrian is moved kinematically)."""
 
-TRANSIENT_HEIGHT: dict[str, float] = {
-    "seam": 0.004,
-    "threshold": 0.015,
-    "cable": 0.007,
-    "kerb_ramp": 0.025,
-    "debris": 0.008,
-}
-"""Height of each benign transient above the floor, m."""
-
-
 @dataclass(frozen=True)
 class Obstacle:
     """One obstacle in the arena."""

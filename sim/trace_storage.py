@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim.vocab import TRANSIENT_HEIGHT
+
 FLOAT32_FIELDS: tuple[str, ...] = (
     "wheel_speed",
     "wheel_torque",
@@ -102,10 +104,8 @@ def decode(arrays: dict[str, np.ndarray], version: int) -> dict[str, np.ndarray]
 
 def _with_transient_heights(out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Traces written before the transient events carried their feature heights get them from the
-    scenario's table (`sim.scenario.TRANSIENT_HEIGHT`), the values the simulator built the features with."""
+    scenario's table (`sim.vocab.TRANSIENT_HEIGHT`), the values the simulator built the features with."""
     if "transients.height" not in out and "transients.kind" in out:
-        from sim.scenario import TRANSIENT_HEIGHT
-
         kinds = [str(k) for k in np.asarray(out["transients.kind"]).ravel()]
         out["transients.height"] = np.array([TRANSIENT_HEIGHT[k] for k in kinds], dtype=np.float64)
     return out

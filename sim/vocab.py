@@ -46,6 +46,16 @@ OBSTACLE_MATERIAL: dict[str, str] = {
 TRANSIENT_KINDS: tuple[str, ...] = ("seam", "threshold", "cable", "kerb_ramp", "debris")
 """Benign transients that nominal driving contains (not anomalies)."""
 
+TRANSIENT_HEIGHT: dict[str, float] = {
+    "seam": 0.004,
+    "threshold": 0.015,
+    "cable": 0.007,
+    "kerb_ramp": 0.025,
+    "debris": 0.008,
+}
+"""Height of each benign transient above the floor, m (the simulator builds the features with it; the trace
+stores it with every event, `sim.trace.TransientEvents.height`)."""
+
 FAULT_KINDS: tuple[str, ...] = ("flat_spot", "out_of_round", "bearing", "loose_wheel", "motor_degradation")
 """Wheel faults, each modelled in the physics."""
 

@@ -17,8 +17,9 @@ from dm_control import mjcf
 from scipy import ndimage
 
 from sim.robot import BuiltRobot, build_robot
-from sim.scenario import OBSTACLE_MASS, TRANSIENT_HEIGHT, Obstacle, Scenario
+from sim.scenario import OBSTACLE_MASS, Obstacle, Scenario
 from sim.trace import ObstacleRecord
+from sim.vocab import TRANSIENT_HEIGHT
 
 PHYSICS_DT = 0.0025
 """Physics time step, s: two steps per 5 ms IMU sample."""

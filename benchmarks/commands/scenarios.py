@@ -21,7 +21,8 @@ def _run(args: argparse.Namespace) -> int:
     import sim
     from sim import faults, vocab
     from sim.robot import DRIVE_TRAINS
-    from sim.scenario import OBSTACLE_MASS, OBSTACLE_SIZES, TRANSIENT_HEIGHT
+    from sim.scenario import OBSTACLE_MASS, OBSTACLE_SIZES
+    from sim.vocab import TRANSIENT_HEIGHT
     from sim.world import SURFACES
 
     seed = check_seed(args.scenario_seed, "--scenario-seed")

@@ -8,8 +8,8 @@ import time
 import numpy as np
 
 from benchmarks.perf.base import PerfStage
-from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEvents
+from sim.vocab import TRANSIENT_HEIGHT
 
 
 def _robot() -> RobotInfo:

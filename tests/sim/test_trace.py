@@ -144,7 +144,7 @@ def test_transient_heights_travel_in_the_trace_and_older_files_get_the_simulator
 ) -> None:
     """The audio's strike needs each floor feature's height: a simulated trace carries the heights the world
     was built with; a file written before the field existed gets the same values from the scenario table."""
-    from sim.scenario import TRANSIENT_HEIGHT
+    from sim.vocab import TRANSIENT_HEIGHT
 
     tr = simulated.transients
     assert len(tr.kind) > 0, "the fixture crosses no floor feature"

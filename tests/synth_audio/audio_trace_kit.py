@@ -6,8 +6,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import ContactEvents, FaultRecord, RobotInfo, Trace, TransientEvents
+from sim.vocab import TRANSIENT_HEIGHT
 
 DT = 0.002
 WHEELS = ("front_left", "front_right", "back_left", "back_right")

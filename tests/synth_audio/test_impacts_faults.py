@@ -12,8 +12,8 @@ from signal_oracles import envelope_spectrum
 
 from sim import faults
 from sim.faults import IMPULSIVE_KINDS, defect_size
-from sim.scenario import TRANSIENT_HEIGHT
 from sim.trace import FaultRecord, FaultStrikes, Trace
+from sim.vocab import TRANSIENT_HEIGHT
 from synth_audio import AudioConfig, render
 from synth_audio.impacts import impact_impulse
 from synth_audio.transients import strike_impulse

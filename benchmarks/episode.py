@@ -49,12 +49,10 @@ READABLE_EPISODE_FORMATS: tuple[int, ...] = (3,)
 EPISODE_AUDIO_BITS = 16
 """Bits per sample of a simulated episode's `audio.flac`, TPDF-dithered from the episode's seed.
 
-The dither's white noise (-96.3 dBFS RMS, -139.8 dBFS/Hz) lies 7 dB under the microphones' self-noise
-(`synth_audio.AudioConfig.mic_noise_spl_db`, -89 dBFS) and, since the robot's fan and the environment's noise
-beds never stop, at least 10 dB under the rendered audio's spectrum at every frequency of the quietest 2 s of
-the highest-SNR `paper` episodes (28 dB in the 0-2205 Hz band the detectors see): it raises the noise floor by
-at most 0.4 dB there and by nothing measurable in the detectors' band. 24 bits would keep the same sound at
-2.2 times the bytes.
+The dither's white noise (one least significant bit of TPDF: 2^-16 / sqrt(6) RMS over the whole band) lies
+under the microphones' self-noise (`synth_audio.AudioConfig.mic_noise_spl_db`) and, since the robot's fan and
+the environment's noise beds never stop, under the rendered audio's spectrum in the band the detectors see:
+16 bits keep what 24 bits keep, in fewer bytes.
 """
 
 AUDIO_FILE, IMU_FILE, TRACE_FILE, EVENTS_FILE, META_FILE = (

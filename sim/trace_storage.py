@@ -10,8 +10,8 @@ Format 1 kept every array as the simulator made it (float64). Format 2 keeps the
   `time` = physics_dt x (1, 2, ..., n) and `imu_time` = every f-th `time` (exact: the simulator's own
   formulas); `wheel_angle` = its first row (float64, kept as `wheel_angle_start`) plus the running sum of the
   stored `wheel_speed` x physics_dt, which is how the simulator's integrator advances it (within
-  `ANGLE_TOLERANCE_RAD`; 3e-7 rad measured after 120 s); `mic_pos` = `base_pos` plus `base_quat` rotating
-  `robot.mic_pos_body` (within `MIC_TOLERANCE_M`; 1e-7 m measured).
+  `ANGLE_TOLERANCE_RAD`, checked on every save); `mic_pos` = `base_pos` plus `base_quat` rotating
+  `robot.mic_pos_body` (within `MIC_TOLERANCE_M`, checked likewise).
   A trace whose values do not follow a law (a hand-made one) keeps that field: `time`, `imu_time` and
   `wheel_angle` as float64, `mic_pos` as float32.
 

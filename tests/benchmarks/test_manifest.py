@@ -34,7 +34,7 @@ def _raw(dataset: Path) -> tuple[str, dict[str, Any]]:
 
 
 def _fingerprint_of_the_raw_manifest(doc: dict[str, Any]) -> str:
-    """`dataset_fingerprint` as it read the manifest when it was a dict (commit d047637): the oracle."""
+    """`dataset_fingerprint` as it read the manifest when it was a dict (its first form): the oracle."""
     entries = [f"windows.csv {doc['windows']['sha256']}"]
     for episode in doc["episodes"]:
         for name, digest in sorted(episode["files"].items()):

@@ -17,7 +17,6 @@ from pathlib import Path
 
 from benchmarks import methods
 from benchmarks.errors import InputNotFoundError, UserError
-from benchmarks.methods._io import write_text_atomic
 from benchmarks.methods.spec import PAPER_TABLES
 from benchmarks.report import (
     AUC_COLUMNS,
@@ -31,6 +30,7 @@ from benchmarks.report import (
     result_tables,
 )
 from benchmarks.results_file import RunResults
+from msvdd.atomic import write_text_atomic
 
 GENERATED_NOTE = "<!-- Written by `msvdd-bench docs` (`make docs`) from results files; do not edit. -->"
 """The first line of the results page and of the README's block."""

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import types
 import typing
-import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
+
+from msvdd.atomic import write_text_atomic
 
 R = TypeVar("R")
 
@@ -125,16 +125,9 @@ def read_json(path: Path, error: ErrorType) -> object:
 
 
 def write_json(path: Path, doc: Any) -> None:
-    """Write `doc` with sorted keys, a two-space indent and a final newline (deterministic bytes) through a
-    temporary sibling renamed into place, so that `path` is never half-written."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """Write `doc` with sorted keys, a two-space indent and a final newline (deterministic bytes) atomically
+    (`msvdd.atomic`), so that `path` is never half-written."""
+    write_text_atomic(path, json.dumps(doc, indent=2, sort_keys=True) + "\n")
 
 
 def _describe(hint: Any) -> str:

@@ -18,9 +18,9 @@ import json
 from pathlib import Path
 
 from benchmarks.cache import source_digest
-from benchmarks.methods._io import write_text_atomic
 from benchmarks.methods.external import is_external
 from benchmarks.methods.registry import versions
+from msvdd.atomic import write_text_atomic
 
 TRAINING_FILE = "training.json"
 """Written into a model folder after the model: its resume key and its training time."""

@@ -18,7 +18,6 @@ from benchmarks.cache import cache_key, cached_dataset
 from benchmarks.dataset import Dataset, check_dev, generate, open_dataset
 from benchmarks.errors import OutputExistsError, UserError, check_seed
 from benchmarks.executor import Executor
-from benchmarks.methods._io import write_text_atomic
 from benchmarks.methods.base import check_scale
 from benchmarks.pipeline import TrainedModel, score_and_measure, test_windows, train_method
 from benchmarks.presets import Preset, expand_methods, get_preset, preset_names
@@ -32,6 +31,7 @@ from benchmarks.resume import (
     record_training,
     training_key,
 )
+from msvdd.atomic import write_text_atomic
 from msvdd.contract import Windows
 
 DATASET_KEY_FILE = "dataset.key"

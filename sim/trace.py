@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import tempfile
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from msvdd.atomic import atomic_file
 from sim import trace_storage
 
 TRACE_FORMAT_VERSION = 3
@@ -303,15 +303,8 @@ class Trace:
         atomically (temp file, then rename); the same trace always gives the same bytes."""
         target = Path(path)
         arrays = self._stored_arrays()
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".trace-", suffix=".npz", dir=target.parent)
-        try:
-            with os.fdopen(fd, "wb") as handle:
-                np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_file(target) as handle:
+            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
         return target
 
     @classmethod

@@ -10,12 +10,12 @@ them at no cost). The dither comes from `dither_seed`, so the same audio and see
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import soundfile as sf
 
+from msvdd.atomic import atomic_path
 from synth_audio.config import Audio, AudioError
 
 FORMATS: dict[str, tuple[str, str]] = {".flac": ("FLAC", "PCM_24"), ".wav": ("WAV", "FLOAT")}
@@ -87,15 +87,8 @@ def write(path: str | os.PathLike[str], audio: Audio, bits: int = 24, dither_see
         if bits > 16:  # libsndfile takes int32 and keeps its top 24 bits
             data <<= 32 - bits
         subtype = "PCM_16" if bits == 16 else "PCM_24"
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".audio-", suffix=target.suffix, dir=target.parent)
-    os.close(fd)
-    try:
+    with atomic_path(target, suffix=target.suffix) as tmp:
         sf.write(tmp, data, int(audio.sample_rate), subtype=subtype, format=fmt)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return target
 
 

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from benchmarks.methods._io import write_text_atomic
+from msvdd.atomic import write_text_atomic
 
 PASS, FAIL, REPORT, SKIP = "PASS", "FAIL", "REPORT", "SKIP"
 

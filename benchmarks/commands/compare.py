@@ -66,7 +66,7 @@ def _run(args: argparse.Namespace) -> int:
     comparison = compare_runs(baseline, candidate, pairs, config)
     print(markdown_table(comparison))
     if args.json is not None:
-        from benchmarks.methods._io import write_text_atomic
+        from msvdd.atomic import write_text_atomic
 
         write_text_atomic(args.json, json.dumps(to_json(comparison), indent=2) + "\n")
     return comparison.exit_code

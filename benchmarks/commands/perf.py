@@ -9,13 +9,13 @@ import os
 import pkgutil
 import platform
 import sys
-import tempfile
 from pathlib import Path
 
 from benchmarks import perf
 from benchmarks.command import Command
 from benchmarks.errors import UserError
 from benchmarks.perf.base import PerfStage
+from msvdd.atomic import atomic_file
 
 
 def stage_modules() -> list[str]:
@@ -73,11 +73,8 @@ def _run(args: argparse.Namespace) -> int:
         **figures,
     }
     target: Path = args.json
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".perf-", suffix=".json")
-    with os.fdopen(fd, "w") as handle:
+    with atomic_file(target, "w") as handle:
         json.dump(report, handle, indent=2)
-    os.replace(tmp, target)
     width = max((len(k) for k in figures), default=10)
     print(f"{'figure':<{width}}  {'value':>12}  meaning")
     for key, value in figures.items():

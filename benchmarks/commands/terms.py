@@ -24,8 +24,8 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from benchmarks.methods._io import write_text_atomic
     from benchmarks.terms import modality_terms, terms_json, terms_markdown
+    from msvdd.atomic import write_text_atomic
 
     report = modality_terms(args.models, args.data, verify=args.verify, progress=not args.no_progress)
     markdown = terms_markdown(report)

@@ -2,42 +2,18 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from benchmarks.errors import InputNotFoundError
+from msvdd.atomic import atomic_file
 from msvdd.contract import ModelFormatError
 
 _HEADER_KEY = "__header__"
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path next to `path`; move it onto `path` only if the block succeeds."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}-", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
-    """Write `text` to `path` atomically (temp file + os.replace)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
 
 
 def save_npz(
@@ -63,7 +39,7 @@ def save_npz(
         if a.dtype == object:
             raise TypeError(f"array {name!r} has object dtype; model files hold numeric arrays only")
         payload[name] = a
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+    with atomic_file(path) as fh:
         np.savez(fh, **payload)  # type: ignore[arg-type]
 
 

@@ -11,7 +11,6 @@ from importlib import metadata
 from pathlib import Path
 
 from benchmarks.errors import InputNotFoundError, UserError, check_seed
-from benchmarks.methods._io import atomic_path, write_text_atomic
 from benchmarks.methods.base import check_scale
 from benchmarks.methods.spec import (
     DEVICES,
@@ -22,6 +21,7 @@ from benchmarks.methods.spec import (
     PaperRow,
     check_spec,
 )
+from msvdd.atomic import atomic_path, write_text_atomic
 from msvdd.contract import Detector, ModelFormatError
 
 __all__ = [

@@ -9,17 +9,15 @@ intervals (an envelope, said so in the legend).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import math
 import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from benchmarks.sweeps.run import AUC_KEYS, PointResult, SweepResult
 from benchmarks.uncertainty import CONFIDENCE, Interval, format_interval
+from msvdd.atomic import atomic_path, write_text_atomic
 
 AUC_TITLES: dict[str, str] = {
     "auc": "AUC, every anomaly against normal",
@@ -33,27 +31,14 @@ def write_outputs(result: SweepResult) -> list[Path]:
     """Write `sweep.json`, `sweep.md` and `figures/<auc key>.png` into the sweep folder; their paths."""
     out = result.out
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    written = [
-        _atomic(out / "sweep.json", lambda p: p.write_text(json.dumps(to_json(result), indent=2) + "\n")),
-    ]
+    written = [write_text_atomic(out / "sweep.json", json.dumps(to_json(result), indent=2) + "\n")]
     for key in AUC_KEYS:
-        written.append(_atomic(out / "figures" / f"{key}.png", functools.partial(plot, result, key)))
-    written.append(_atomic(out / "sweep.md", lambda p: p.write_text(markdown(result))))
+        figure = out / "figures" / f"{key}.png"
+        with atomic_path(figure, suffix=figure.suffix) as tmp:  # matplotlib picks the format by the suffix
+            plot(result, key, tmp)
+        written.append(figure)
+    written.append(write_text_atomic(out / "sweep.md", markdown(result)))
     return written
-
-
-def _atomic(path: Path, write: Callable[[Path], object]) -> Path:
-    """Write through a temporary sibling (same suffix) renamed onto `path`."""
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _methods(result: SweepResult) -> list[str]:

@@ -16,7 +16,6 @@ import shutil
 import subprocess
 import tempfile
 import time
-from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
 
@@ -247,12 +246,3 @@ def wait_until_still(
         if same >= repeats:
             return last, True
     return last, False
-
-
-def save_png(data: bytes, path: Path) -> Path:
-    """Write PNG bytes to `path` (folders made), atomically."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
-    return path

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 import rerun as rr
@@ -29,6 +28,7 @@ from benchmarks.viz.series import (
     log_wheel_speeds,
 )
 from benchmarks.viz.serve import GRPC_PORT, move_time_cursor, require_display
+from msvdd.atomic import atomic_path
 from msvdd.contract import WINDOW_S, Detector
 from sim.trace import Trace
 
@@ -191,34 +191,27 @@ def log_episode(
     blueprint = build_blueprint(layout(plan, episode, trace, method_name, title, audio_playback, config))
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=f"{Path(dataset_dir).name}/{episode_id}")
     target = Path(save) if save is not None else None
-    tmp: Path | None = None
-    try:
-        if target is not None:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            fd, name = tempfile.mkstemp(prefix=f".{target.name}.partial-", suffix=".rrd", dir=target.parent)
-            os.close(fd)
-            tmp = Path(name)
-        if spawn:
-            rec.spawn(connect=tmp is None, default_blueprint=blueprint)
-            if tmp is not None:
-                rec.set_sinks(rr.GrpcSink(), rr.FileSink(tmp), default_blueprint=blueprint)
-        elif tmp is not None:
-            rec.save(tmp, default_blueprint=blueprint)
-        rec.send_recording_name(episode_id)
-        log_recording(rec, episode, trace, scores, config, hop_s, audio_playback, plan)
-        rec.flush()
-        rec.disconnect()
-        if spawn and plan.first_anomaly is not None:
-            viewer = f"rerun+http://127.0.0.1:{GRPC_PORT}/proxy"
-            failed = move_time_cursor(viewer, TIMELINE, plan.first_anomaly.start)
-            if failed is not None:
-                print(f"note: could not move the viewer to the first anomaly ({failed})", file=sys.stderr)
-        if tmp is not None and target is not None:
-            os.replace(tmp, target)
-            tmp = None
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(Exception):
-                rec.disconnect()
-            tmp.unlink(missing_ok=True)
+    with contextlib.ExitStack() as stack:  # the .rrd file is renamed into place at the end, removed on error
+        tmp = stack.enter_context(atomic_path(target, suffix=".rrd")) if target is not None else None
+        try:
+            if spawn:
+                rec.spawn(connect=tmp is None, default_blueprint=blueprint)
+                if tmp is not None:
+                    rec.set_sinks(rr.GrpcSink(), rr.FileSink(tmp), default_blueprint=blueprint)
+            elif tmp is not None:
+                rec.save(tmp, default_blueprint=blueprint)
+            rec.send_recording_name(episode_id)
+            log_recording(rec, episode, trace, scores, config, hop_s, audio_playback, plan)
+            rec.flush()
+            rec.disconnect()
+            if spawn and plan.first_anomaly is not None:
+                viewer = f"rerun+http://127.0.0.1:{GRPC_PORT}/proxy"
+                failed = move_time_cursor(viewer, TIMELINE, plan.first_anomaly.start)
+                if failed is not None:
+                    print(f"note: could not move the viewer to the first anomaly ({failed})", file=sys.stderr)
+        except BaseException:
+            if tmp is not None:  # stop the file sink before its file is removed
+                with contextlib.suppress(Exception):
+                    rec.disconnect()
+            raise
     return target

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from benchmarks.errors import UserError, is_user_error
-from benchmarks.viz.chromium import Chromium, save_png, wait_until_still
+from benchmarks.viz.chromium import Chromium, wait_until_still
 from benchmarks.viz.serve import free_port, serve_web
+from msvdd.atomic import write_bytes_atomic
 
 SIZES: tuple[tuple[int, int], ...] = ((1440, 900), (1920, 1080))
 """Screen sizes photographed by default, CSS pixels."""
@@ -72,7 +73,7 @@ def photograph(
     with Chromium(*size, executable=browser, timeout_s=max(60.0, max_wait_s)) as page:
         page.open(url)
         png, settled = wait_until_still(page, min_wait_s, max_wait_s)
-    return Shot(save_png(shrink_png(png), out), settled, time.monotonic() - started)
+    return Shot(write_bytes_atomic(out, shrink_png(png)), settled, time.monotonic() - started)
 
 
 def describe_scores(data: Path, episode: str, model: Path, hop_s: float) -> str:

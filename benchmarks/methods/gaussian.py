@@ -65,11 +65,18 @@ class GaussianReference(WindowDetector):
         self.std = np.zeros(0)
         self.precision = np.zeros((0, 0))
 
+    def _features(self, batch: Windows) -> np.ndarray:
+        """(N, F) the window features the Gaussian is over."""
+        return reference_features(batch, self.modality)
+
     def _standardised(self, batch: Windows) -> np.ndarray:
-        return (reference_features(batch, self.modality) - self.mean) / self.std
+        x = self._features(batch)
+        if x.shape[1] != self.mean.size:
+            raise WindowError(f"the batch gives {x.shape[1]} features; the model was fit on {self.mean.size}")
+        return (x - self.mean) / self.std
 
     def _fit(self, train: Windows, val: Windows | None) -> None:
-        x = reference_features(train, self.modality)
+        x = self._features(train)
         self.mean = x.mean(axis=0)
         self.std = np.maximum(x.std(axis=0), _STD_FLOOR)
         z = (x - self.mean) / self.std

@@ -16,8 +16,9 @@ faulty wheel, the defect's angle and the balls' slip are unknown to it):
 
 The orders come from the drive train of the robot model (`sim.faults.bpfo_order`, pinion teeth x gear
 ratio); a robot team knows its own. Features are logarithms, floored where noise leaves them (a line at
-1 / sqrt(n), a strength at 1); their Gaussian over nominal training windows is the Ledoit-Wolf one of the
-reference detector (`benchmarks.methods.gaussian`), and the score is the squared Mahalanobis distance.
+1 / sqrt(n), a strength at 1); their Gaussian over nominal training windows is the reference detector's
+(`benchmarks.methods.gaussian.GaussianReference`: standardised, Ledoit-Wolf covariance), and the score is the
+squared Mahalanobis distance.
 A window without odometry is refused.
 """
 
@@ -26,10 +27,9 @@ from __future__ import annotations
 from typing import Any, Self
 
 import numpy as np
-from sklearn.covariance import LedoitWolf
 
 from benchmarks import condition
-from benchmarks.methods.base import WindowDetector
+from benchmarks.methods.gaussian import GaussianReference
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError, Windows
 from sim.faults import BEARING_SLIP, bpfo_order, envelope_band
 from sim.robot import DRIVE_TRAINS
@@ -42,7 +42,6 @@ MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5
 """Orders around the gear-mesh line (between its sidebands) whose lines give its noise floor."""
 BANDS: tuple[str, ...] = ("flat_spot", "bearing", "loose_wheel")
 """Fault kinds whose audio band (`sim.faults.envelope_band`) the detector reads."""
-_STD_FLOOR = 1e-8
 _CHUNK = 64
 
 
@@ -98,8 +97,8 @@ def _chunk_features(batch: Windows, model: str) -> np.ndarray:
     return np.concatenate(parts, axis=1)
 
 
-class OrderReference(WindowDetector):
-    """Order-tracked condition-monitoring features per wheel, Ledoit-Wolf Gaussian, squared Mahalanobis."""
+class OrderReference(GaussianReference):
+    """Order-tracked condition-monitoring features per wheel under the reference detector's Gaussian."""
 
     kind = "order-reference"
 
@@ -108,23 +107,9 @@ class OrderReference(WindowDetector):
         if model not in DRIVE_TRAINS:
             raise ValueError(f"model {model!r} is unknown; allowed: {', '.join(DRIVE_TRAINS)}")
         self.model = model
-        self.mean = np.zeros(0)
-        self.std = np.zeros(0)
-        self.precision = np.zeros((0, 0))
 
-    def _fit(self, train: Windows, val: Windows | None) -> None:
-        x = order_features(train, self.model)
-        self.mean = x.mean(axis=0)
-        self.std = np.maximum(x.std(axis=0), _STD_FLOOR)
-        z = (x - self.mean) / self.std
-        self.precision = LedoitWolf(assume_centered=True).fit(z).precision_
-
-    def _score(self, batch: Windows) -> np.ndarray:
-        x = order_features(batch, self.model)
-        if x.shape[1] != self.mean.size:
-            raise WindowError(f"the batch gives {x.shape[1]} features; the model was fit on {self.mean.size}")
-        z = (x - self.mean) / self.std
-        return np.einsum("ij,jk,ik->i", z, self.precision, z)
+    def _features(self, batch: Windows) -> np.ndarray:
+        return order_features(batch, self.model)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         return {"model": self.model}, {"mean": self.mean, "std": self.std, "precision": self.precision}

@@ -87,3 +87,36 @@ def revolutions(angle: np.ndarray) -> np.ndarray:
     """(N,) revolutions a wheel turned over each (N, n) angle trace (rad), whichever way it turned."""
     a = np.atleast_2d(np.asarray(angle, dtype=np.float64))
     return np.asarray(np.abs(np.diff(a, axis=-1)).sum(axis=-1) / (2 * np.pi))
+
+
+SPLIT_HZ = 4.0
+"""IMU content below this is the chassis' smooth motion (tracked as it is), above it vibration (its power)."""
+ENVELOPE_BLOCK = 21
+"""Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
+MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
+"""Orders around a gear-mesh line (between its sidebands) whose lines give its noise floor."""
+
+
+def log_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
+    """(N, K) log of `order_lines`, floored at what noise gives (1 / sqrt(n)), which a still wheel gives."""
+    lines = order_lines(x, angle, orders)
+    return np.asarray(np.log(np.maximum(lines, 1.0 / np.sqrt(np.shape(x)[-1]))))
+
+
+def block_envelope(
+    audio: np.ndarray, rate: float, band: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (N, n / `ENVELOPE_BLOCK`) squared envelope of (N, n) audio in `band`, averaged over blocks of
+    `ENVELOPE_BLOCK` samples, and the (n / `ENVELOPE_BLOCK`,) times of its samples (block centres), s."""
+    env = squared_envelope(audio, rate, band)
+    env = env.reshape(len(env), -1, ENVELOPE_BLOCK).mean(axis=-1)
+    return env, (np.arange(env.shape[1]) + 0.5) * ENVELOPE_BLOCK / rate
+
+
+def mesh_lines(audio: np.ndarray, angle: np.ndarray, mesh: float, shaft: float) -> np.ndarray:
+    """(N, 3) log of the gear-mesh line of (N, n) audio at wheel angles `angle` and of its two motor-shaft
+    sidebands (mesh -+ `shaft` orders), each over the median line at `MESH_NEIGHBOURS` around the mesh."""
+    offsets = np.array([0.0, -shaft, shaft, *MESH_NEIGHBOURS])
+    lines = order_lines(audio, angle, mesh + offsets)
+    floor = np.maximum(np.median(lines[:, 3:], axis=1, keepdims=True), 1e-12)
+    return np.asarray(np.log(np.maximum(lines[:, :3], 1e-12) / floor))

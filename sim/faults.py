@@ -172,14 +172,6 @@ def defect_order(kind: str, robot: RobotInfo) -> float:
     return 1.0
 
 
-def tracked_orders(kind: str, robot: RobotInfo) -> tuple[float, ...]:
-    """The orders (events per wheel revolution) at which a fault of `kind` shows: what an analyst who knows
-    the fault tracks (the audit's oracle). The defect order, and for worn gears also the motor shaft's."""
-    if kind == "motor_degradation":
-        return (float(robot.gear_ratio), defect_order(kind, robot))
-    return (defect_order(kind, robot),)
-
-
 def envelope_band(kind: str, rate: float) -> tuple[float, float]:
     """One octave around the structural resonance a fault of `kind` excites (before per-unit variation),
     clipped to [20 Hz, 0.5 `rate`): where its strikes' envelope is read."""

@@ -8,14 +8,14 @@ detectors' 4410 Hz audio and the 200 Hz IMU, `benchmarks.condition`) it computes
 
 - strikes (flat spot, bearing, loose hub): the response in the `STRIKE_GATE_S` after each pass of the defect
   (the angle crossing phase + 2 pi j / order) over the rest of the window, in the audio's squared envelope in
-  the kind's band (`sim.faults.envelope_band`) and in the vibration power (above `IMU_SPLIT_HZ`) of the seven
-  IMU channels (z-velocity, accelerometer and gyroscope xyz): the time-synchronous average of the defect's
-  strike against everything else;
+  the kind's band (`sim.faults.envelope_band`) and in the vibration power (above `condition.SPLIT_HZ`) of
+  the seven IMU channels (z-velocity, accelerometer and gyroscope xyz): the time-synchronous average of the
+  defect's strike against everything else;
 - once-per-revolution motion (flat spot, out-of-round wheel, loose hub): the order-1 line of each IMU channel
-  below `IMU_SPLIT_HZ`;
+  below `condition.SPLIT_HZ`;
 - level: the audio envelope's mean (and, for a loose hub's rattle, the IMU's vibration power);
 - worn gears: the gear-mesh line and its motor-shaft sidebands in the raw audio over the lines between them
-  (`MESH_NEIGHBOURS`), and the motor-shaft order line of the IMU's vibration.
+  (`condition.mesh_lines`), and the motor-shaft order line of the IMU's vibration.
 
 A fault window is looked at through its faulty wheel at its defect's angle and order; a nominal window
 through every wheel at `NOMINAL_PHASES` angles (`nominal_views`). Each feature is compared with its
@@ -57,13 +57,8 @@ CONTROL_LIMIT = 0.65
 """Most the oracle may separate the fault episodes re-simulated at severity 0 (two-sided AUC)."""
 SEVERITY_BINS: tuple[tuple[float, float], ...] = ((0.0, 0.5), (0.5, 0.75), (0.75, 1.0))
 """Severity bins the oracle and the level probe are reported in (low included; the last includes 1)."""
-ENVELOPE_BLOCK = 21
-"""Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
 TRAIN_WINDOWS = 1500
 """Most nominal training windows the oracle's baseline is fitted on (evenly over the episodes)."""
-IMU_SPLIT_HZ = 4.0
-"""IMU content below this is the chassis' smooth motion (tracked as it is), above it vibration (tracked as
-its power)."""
 NOMINAL_PHASES = 4
 """Defect angles (evenly spaced) a nominal window is looked at with, for each wheel."""
 STRIKE_GATE_S = 0.05
@@ -72,8 +67,6 @@ the tyre's and chassis' ring after a strike)."""
 TOP_FEATURES = 3
 """How many of a window's most extreme features its score sums (the evidence of the strongest indicators,
 which the others, quiet for this fault, cannot dilute)."""
-MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
-"""Orders around a gear-mesh line (between its sidebands) whose lines give its noise floor."""
 
 
 def severity_bin(severity: float) -> str:
@@ -166,12 +159,6 @@ def _gated(power: np.ndarray, angle: np.ndarray, view: View, rate: float) -> np.
     return np.asarray(np.maximum(ratio, 1e-3))
 
 
-def _line(x: np.ndarray, angle: np.ndarray, order: float) -> np.ndarray:
-    """(k,) log of the order-`order` line of (k, n) signals, floored at what noise gives (1 / sqrt(n))."""
-    line = condition.order_lines(x, angle, np.array([order]))[:, 0]
-    return np.asarray(np.log(np.maximum(line, 1.0 / np.sqrt(x.shape[-1]))))
-
-
 def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list[np.ndarray]:
     """(k, F) oracle features of the windows at `starts` (s), looked at through each of `views` (all of one
     fault kind; see the module)."""
@@ -184,35 +171,32 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
     out: list[np.ndarray] = []
     if kind == "motor_degradation":
         t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
-        vibration = condition.band_pass(imu.transpose(0, 2, 1), IMU_RATE, (IMU_SPLIT_HZ, IMU_RATE / 2))
+        split = (condition.SPLIT_HZ, IMU_RATE / 2)
+        vibration = condition.band_pass(imu.transpose(0, 2, 1), IMU_RATE, split)
         for v in views:
             angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angles[v.wheel]])
-            offsets = np.array([0.0, -v.shaft, v.shaft, *MESH_NEIGHBOURS])
-            lines = condition.order_lines(audio, angle_audio, v.order + offsets)
-            floor = np.maximum(np.median(lines[:, 3:], axis=1), 1e-12)
-            parts = [np.log(np.maximum(lines[:, j], 1e-12) / floor) for j in range(3)]
-            parts += [_line(vibration[:, c], angles[v.wheel], v.shaft) for c in range(imu.shape[-1])]
-            out.append(np.stack(parts, axis=1))
+            mesh = condition.mesh_lines(audio, angle_audio, v.order, v.shaft)
+            lines = [condition.log_lines(vibration[:, c], angles[v.wheel], np.array([v.shaft]))
+                     for c in range(imu.shape[-1])]  # fmt: skip
+            out.append(np.concatenate([mesh, *lines], axis=1))
         return out
-    env = condition.squared_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
-    env = env.reshape(len(starts), -1, ENVELOPE_BLOCK).mean(axis=-1)  # (k, 420) at 210 Hz
-    t_env = (np.arange(env.shape[1]) + 0.5) * ENVELOPE_BLOCK / AUDIO_RATE
+    env, t_env = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
     level = np.log(env.mean(axis=-1) + 1e-20)
     channels = imu.transpose(0, 2, 1)  # (k, 7, 400)
-    power = condition.band_pass(channels, IMU_RATE, (IMU_SPLIT_HZ, IMU_RATE / 2)) ** 2
+    power = condition.band_pass(channels, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
     motion = condition.band_pass(channels, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
-    smooth = condition.band_pass(channels, IMU_RATE, (0.3, IMU_SPLIT_HZ))
+    smooth = condition.band_pass(channels, IMU_RATE, (0.3, condition.SPLIT_HZ))
     for v in views:
         angle = angles[v.wheel]
         parts = [level]
         if kind in IMPULSIVE_KINDS:
             angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
-            parts.append(np.log(_gated(env, angle_env, v, AUDIO_RATE / ENVELOPE_BLOCK)))
+            parts.append(np.log(_gated(env, angle_env, v, AUDIO_RATE / condition.ENVELOPE_BLOCK)))
         for c in range(channels.shape[1]):
             if kind in IMPULSIVE_KINDS:
                 parts.append(np.log(_gated(motion[:, c], angle, v, IMU_RATE)))
             if kind in ("out_of_round", "loose_wheel", "flat_spot"):
-                parts.append(_line(smooth[:, c], angle, 1.0))
+                parts.append(condition.log_lines(smooth[:, c], angle, np.array([1.0]))[:, 0])
             if kind == "loose_wheel":
                 parts.append(np.log(power[:, c].mean(axis=-1) + 1e-20))
         out.append(np.stack(parts, axis=1))

@@ -91,9 +91,12 @@ class GaussianReference(WindowDetector):
 
     @classmethod
     def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
-        detector = cls(str(header["modality"]))
-        detector.mean, detector.std, detector.precision = arrays["mean"], arrays["std"], arrays["precision"]
-        return detector
+        return cls(str(header["modality"]))._restored(arrays)
+
+    def _restored(self, arrays: dict[str, np.ndarray]) -> Self:
+        """This detector with the Gaussian `_state` saved."""
+        self.mean, self.std, self.precision = arrays["mean"], arrays["std"], arrays["precision"]
+        return self
 
 
 def register_methods() -> None:

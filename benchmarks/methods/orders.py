@@ -5,8 +5,8 @@ What a vibration analyst who knows the robot's drive train computes on every 2 s
 wheel's angle from its encoder (the odometry modality, `Windows.odometry`), for every wheel in turn (the
 faulty wheel, the defect's angle and the balls' slip are unknown to it):
 
-- the order-1 line of the chassis' smooth motion (each IMU channel below `SPLIT_HZ`): a wheel that rides up
-  and down or wobbles once per revolution;
+- the order-1 line of the chassis' smooth motion (each IMU channel below `condition.SPLIT_HZ`): a wheel that
+  rides up and down or wobbles once per revolution;
 - the time-synchronous average's strength of the IMU's vibration power (each channel, 0.5-100 Hz) over one
   revolution and over one ball pass, and of the audio's squared envelope over one revolution in the tyre's
   band and over one ball pass in the hub's band: a strike that repeats at the same wheel angle;
@@ -34,20 +34,9 @@ from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError
 from sim.faults import BEARING_SLIP, bpfo_order, envelope_band
 from sim.robot import DRIVE_TRAINS
 
-SPLIT_HZ = 4.0
-"""IMU content below this is smooth motion (its order-1 line), above it vibration (its power)."""
-ENVELOPE_BLOCK = 21
-"""Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
-MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
-"""Orders around the gear-mesh line (between its sidebands) whose lines give its noise floor."""
 BANDS: tuple[str, ...] = ("flat_spot", "bearing", "loose_wheel")
 """Fault kinds whose audio band (`sim.faults.envelope_band`) the detector reads."""
 _CHUNK = 64
-
-
-def _log_line(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
-    lines = condition.order_lines(x, angle, orders)
-    return np.asarray(np.log(np.maximum(lines, 1.0 / np.sqrt(x.shape[-1]))))
 
 
 def _log_sync(x: np.ndarray, angle: np.ndarray, order: float) -> np.ndarray:
@@ -69,31 +58,26 @@ def _chunk_features(batch: Windows, model: str) -> np.ndarray:
     assert batch.odometry is not None and batch.imu6 is not None
     imu = np.concatenate([batch.imu[:, :, None], batch.imu6], axis=2).transpose(0, 2, 1)  # (k, 7, 400)
     audio = batch.audio.astype(np.float64).sum(axis=-1)  # (k, 8820)
-    smooth = condition.band_pass(imu, IMU_RATE, (0.3, SPLIT_HZ))
+    smooth = condition.band_pass(imu, IMU_RATE, (0.3, condition.SPLIT_HZ))
     vibration = condition.band_pass(imu, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
-    envelopes = {}
+    envelopes: dict[str, np.ndarray] = {}
     for kind in BANDS:
-        env = condition.squared_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
-        envelopes[kind] = env.reshape(len(audio), -1, ENVELOPE_BLOCK).mean(axis=-1)  # (k, 420) at 210 Hz
+        envelopes[kind], t_env = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
     t_imu = np.arange(IMU_LEN) / IMU_RATE
-    t_env = (np.arange(AUDIO_LEN // ENVELOPE_BLOCK) + 0.5) * ENVELOPE_BLOCK / AUDIO_RATE
     t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
     parts: list[np.ndarray] = [np.log(env.mean(axis=-1) + 1e-20)[:, None] for env in envelopes.values()]
     parts.append(np.log(vibration.mean(axis=-1) + 1e-20))
-    offsets = np.array([0.0, -drive.gear_ratio, drive.gear_ratio, *MESH_NEIGHBOURS])
     for w in range(batch.odometry.shape[2]):
         angle = batch.odometry[:, :, w].astype(np.float64)
         angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
         angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angle])
         for c in range(imu.shape[1]):
-            parts.append(_log_line(smooth[:, c], angle, np.array([1.0])))
+            parts.append(condition.log_lines(smooth[:, c], angle, np.array([1.0])))
             parts.append(_log_sync(vibration[:, c], angle, 1.0)[:, None])
             parts.append(_log_sync(vibration[:, c], angle, bpfo)[:, None])
         parts.append(_log_sync(envelopes["flat_spot"], angle_env, 1.0)[:, None])
         parts.append(_log_sync(envelopes["bearing"], angle_env, bpfo)[:, None])
-        lines = condition.order_lines(audio, angle_audio, mesh + offsets)
-        floor = np.maximum(np.median(lines[:, 3:], axis=1, keepdims=True), 1e-12)
-        parts.append(np.log(np.maximum(lines[:, :3], 1e-12) / floor))
+        parts.append(condition.mesh_lines(audio, angle_audio, mesh, drive.gear_ratio))
     return np.concatenate(parts, axis=1)
 
 
@@ -112,13 +96,11 @@ class OrderReference(GaussianReference):
         return order_features(batch, self.model)
 
     def _state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        return {"model": self.model}, {"mean": self.mean, "std": self.std, "precision": self.precision}
+        return {"model": self.model}, super()._state()[1]
 
     @classmethod
     def _from_state(cls, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> Self:
-        detector = cls(str(header["model"]))
-        detector.mean, detector.std, detector.precision = arrays["mean"], arrays["std"], arrays["precision"]
-        return detector
+        return cls(str(header["model"]))._restored(arrays)
 
 
 def register_methods() -> None:

@@ -36,6 +36,7 @@ where its stream ended is:
   `jitter_s`.
 
 Empty chunks change nothing (their timestamps are ignored). `counters` returns a `StreamCounters` snapshot.
+`GapPolicy.place` is the rule itself; `msvdd-bench import --layout ros2` lays out a bag's streams with it.
 Memory stays bounded as long as neither stream runs far ahead of the other.
 """
 
@@ -86,6 +87,30 @@ class GapPolicy:
                 f"GapPolicy.max_fill_s = {self.max_fill_s!r}; allowed: finite and >= jitter_s "
                 f"({self.jitter_s})"
             )
+
+    def place(self, offset_s: float | None, n: int, rate: float) -> Placement:
+        """Where a chunk of `n` samples at `rate` Hz goes, timed `offset_s` seconds after its stream's end
+        (None: untimed, straight on); the module doc's rule, for the scorer and for `msvdd-bench import`."""
+        if offset_s is None:
+            return Placement()
+        gap = 0 if abs(offset_s) <= self.jitter_s else round(offset_s * rate)
+        if gap < 0:
+            return Placement(dropped=min(-gap, n))
+        if gap > round(self.max_fill_s * rate):
+            return Placement(reset=gap)
+        return Placement(filled=gap)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where `GapPolicy.place` puts a timed chunk; at most one field is non-zero."""
+
+    dropped: int = 0
+    """Leading samples dropped: timed before the stream's end (a duplicate, late or overlapping chunk)."""
+    filled: int = 0
+    """Samples filled in before the chunk: a gap longer than `jitter_s`, at most `max_fill_s`."""
+    reset: int = 0
+    """Samples between the stream's end and the chunk when the gap is longer than `max_fill_s` (a reset)."""
 
 
 @dataclass
@@ -224,25 +249,23 @@ class StreamingScorer:
         self._trim()
         return scores
 
-    def _offset(self, t: float | None, end: int, rate: float) -> int:
-        """Samples between a stream's end and a chunk timed t (0 within the jitter tolerance)."""
-        if t is None:
-            return 0
-        dt = (t - self.start_s) - end / rate
-        return 0 if abs(dt) <= self.policy.jitter_s else round(dt * rate)
+    def _place(self, t: float | None, end: int, n: int, rate: float) -> Placement:
+        """Where a chunk of n samples timed t goes in a stream that ends at sample `end` (the policy's rule)."""
+        return self.policy.place(None if t is None else (t - self.start_s) - end / rate, n, rate)
 
     def _push_audio(self, a: np.ndarray, t: float | None) -> None:
         c = self._counters
         c.audio_chunks += 1
-        gap = self._offset(t, self._audio_end, RAW_AUDIO_RATE)
-        if gap < 0:
-            late = min(-gap, a.shape[0])
+        place = self._place(t, self._audio_end, a.shape[0], RAW_AUDIO_RATE)
+        gap = place.filled
+        if place.dropped:
+            late = place.dropped
             c.audio_samples_dropped += late
             c.audio_chunks_dropped += int(late == a.shape[0])
             a = a[late:]
-        elif gap > round(self.policy.max_fill_s * RAW_AUDIO_RATE):
+        elif place.reset:
             c.resets += 1
-            self._restart_audio(self._audio_end + gap)
+            self._restart_audio(self._audio_end + place.reset)
         elif gap > 0:
             c.audio_gaps_filled += 1
             c.audio_samples_filled += gap
@@ -257,17 +280,18 @@ class StreamingScorer:
         c = self._counters
         c.imu_chunks += 1
         end = self._imu0 + self._imu.shape[0]
-        gap = self._offset(t, end, IMU_RATE)
-        if gap < 0:
-            late = min(-gap, i.shape[0])
+        place = self._place(t, end, i.shape[0], IMU_RATE)
+        gap = place.filled
+        if place.dropped:
+            late = place.dropped
             c.imu_samples_dropped += late
             c.imu_chunks_dropped += int(late == i.shape[0])
             i, i6 = i[late:], i6[late:]
-        elif gap > round(self.policy.max_fill_s * IMU_RATE):
+        elif place.reset:
             c.resets += 1
             self._imu = np.zeros(0, dtype=np.float32)
             self._imu6 = np.zeros((0, 6), dtype=np.float32)
-            self._imu0 = end + gap
+            self._imu0 = end + place.reset
         elif gap > 0:
             c.imu_gaps_filled += 1
             c.imu_samples_filled += gap

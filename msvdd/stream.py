@@ -250,7 +250,7 @@ class StreamingScorer:
         return scores
 
     def _place(self, t: float | None, end: int, n: int, rate: float) -> Placement:
-        """Where a chunk of n samples timed t goes in a stream that ends at sample `end` (the policy's rule)."""
+        """Where a chunk of n samples timed t goes in a stream ending at sample `end` (the policy's rule)."""
         return self.policy.place(None if t is None else (t - self.start_s) - end / rate, n, rate)
 
     def _push_audio(self, a: np.ndarray, t: float | None) -> None:

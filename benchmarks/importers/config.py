@@ -1,14 +1,18 @@
-"""What `msvdd-bench import` is told: the options every layout shares, and those of the folder and windows
-layouts; with the parsers of their text forms (`--imu-columns`, `--channels`)."""
+"""What `msvdd-bench import` is told: the options every layout shares, and those of the folder, windows and
+ros2 layouts; with the parsers of their text forms (`--imu-columns`, `--channels`, the ros2 topic mapping)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 
 from benchmarks.errors import UserError
+from benchmarks.ros2.topics import READ_TYPES, Topics
+from msvdd.stream import GapPolicy
 
-LAYOUTS: tuple[str, ...] = ("folder", "mimii", "windows")
+LAYOUTS: tuple[str, ...] = ("folder", "mimii", "windows", "ros2")
 """Source layouts `import` reads (one module each in `benchmarks.importers`)."""
 ANOMALY_KINDS: tuple[str, ...] = ("collision", "mechanical")
 """Kinds an imported anomaly can have: the benchmark's (metrics and reports split by them)."""
@@ -174,3 +178,97 @@ class WindowsConfig:
         for name, value in (("--audio-rate", self.audio_rate), ("--imu-rate", self.imu_rate)):
             if not (math.isfinite(value) and value > 0):
                 raise UserError(f"{name} = {value} is invalid; allowed: > 0 Hz")
+
+
+@dataclass(frozen=True)
+class Ros2Config:
+    """Options of the ros2 layout (ROS 2 bags in MCAP)."""
+
+    topics: Topics = field(default_factory=Topics)
+    """Topic of each stream (`benchmarks.ros2.topics.Topics`)."""
+    named: tuple[str, ...] = ()
+    """Streams whose topic a flag or the mapping file named: a bag without it is refused (the default topic
+    of an optional stream, `velocity` or `joint_states`, is read where the bag has it; the labels topic
+    need only be in the bags that hold an anomaly)."""
+    labels: str | None = None
+    """Label CSV (recording, start_s, end_s[, kind][, sub_kind]; seconds from the recording's first
+    message); None: no label CSV."""
+    labels_topic: bool = False
+    """Read the anomaly intervals of `topics.labels` (`msvdd_bench_msgs/msg/AnomalyInterval`)."""
+    split_file: str | None = None
+    """CSV (recording, split) fixing the split of some recordings; None: the split rule for all."""
+    wheel_joints: tuple[str, ...] | None = None
+    """Joints of `sensor_msgs/msg/JointState` that are the wheels, in order; None: every joint whose name
+    holds `wheel`, in the order of the first message."""
+    policy: GapPolicy = field(default_factory=GapPolicy)
+    """How jitter, gaps, duplicate and late stamps are treated: the streaming scorer's policy."""
+
+    def __post_init__(self) -> None:
+        if self.labels is not None and self.labels_topic:
+            raise UserError("--labels and --labels-topic: give one source of labels, not both")
+        if self.wheel_joints is not None and not self.wheel_joints:
+            raise UserError("wheel joints: an empty list; allowed: one or more joint names")
+
+
+def gap_policy(jitter_s: float | None, max_fill_s: float | None) -> GapPolicy:
+    """The streaming scorer's `GapPolicy` with `--jitter` and `--max-fill` where given (None: its default).
+
+    Raises:
+        UserError: a value the policy refuses (naming the flag).
+    """
+    default = GapPolicy()
+    jitter = default.jitter_s if jitter_s is None else jitter_s
+    fill = default.max_fill_s if max_fill_s is None else max_fill_s
+    if not (math.isfinite(jitter) and jitter >= 0):
+        raise UserError(f"--jitter = {jitter} is invalid; allowed: >= 0 s")
+    if not (math.isfinite(fill) and fill >= jitter):
+        raise UserError(f"--max-fill = {fill} is invalid; allowed: >= the jitter tolerance ({jitter:g} s)")
+    return GapPolicy(jitter_s=jitter, max_fill_s=fill)
+
+
+MAPPING_KEYS: tuple[str, ...] = (*READ_TYPES, "wheel_joints")
+"""Keys of a ros2 topic mapping file: a topic per stream read, and the wheel joints."""
+
+
+def read_topic_mapping(path: Path) -> dict[str, str | tuple[str, ...]]:
+    """A TOML topic mapping file: `imu = "/my/imu"`, ..., `wheel_joints = ["wl", "wr"]` (any subset).
+
+    Raises:
+        UserError: unreadable TOML, an unknown key, or a value of the wrong type.
+    """
+    try:
+        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise UserError(f"--topics {path}: not a readable TOML file ({exc})") from exc
+    out: dict[str, str | tuple[str, ...]] = {}
+    for key, value in doc.items():
+        if key not in MAPPING_KEYS:
+            raise UserError(f"--topics {path}: key {key!r} is unknown; allowed: {', '.join(MAPPING_KEYS)}")
+        if key == "wheel_joints":
+            if not (isinstance(value, list) and value and all(isinstance(v, str) and v for v in value)):
+                raise UserError(f"--topics {path}: wheel_joints = {value!r}; allowed: a list of joint names")
+            out[key] = tuple(value)
+        elif isinstance(value, str) and value.startswith("/"):
+            out[key] = value
+        else:
+            raise UserError(f'--topics {path}: {key} = {value!r}; allowed: a topic name such as "/imu/data"')
+    return out
+
+
+def ros2_config(
+    mapping: dict[str, str | tuple[str, ...]], flags: dict[str, str | None], **options: object
+) -> Ros2Config:
+    """A `Ros2Config` from a topic mapping (`read_topic_mapping`, may be empty), topic flags by stream (None:
+    not given; a flag wins over the file; a `labels` topic reads the labels from it) and the other options
+    (`Ros2Config`'s other fields)."""
+    given = {**mapping, **{k: v for k, v in flags.items() if v is not None}}
+    names = {f.name for f in fields(Topics)}
+    topics = replace(Topics(), **{k: v for k, v in given.items() if k in names and isinstance(v, str)})
+    wheels = given.get("wheel_joints")
+    return Ros2Config(
+        topics=topics,
+        named=tuple(k for k in READ_TYPES if k in given),
+        labels_topic="labels" in given,
+        wheel_joints=wheels if isinstance(wheels, tuple) else None,
+        **options,  # type: ignore[arg-type]
+    )

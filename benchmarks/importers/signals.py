@@ -194,14 +194,20 @@ def read_imu_csv(path: Path, folder: FolderConfig) -> ImuSeries:
             f"--imu-rate is {folder.imu_rate:g} Hz; allowed: within {IMU_RATE_TOLERANCE:.0%} (check "
             "--imu-rate and --time-unit)"
         )
-    data = values[:, 1:]
-    if rate > IMU_ANTI_ALIAS_ABOVE:
-        data = _lowpass(data, IMU_ANTI_ALIAS_HZ, rate)
     grid = t[0] + np.arange(math.floor((t[-1] - t[0]) * IMU_RATE + 1e-9) + 1) / IMU_RATE
-    resampled = np.stack([np.interp(grid, t, data[:, c]) for c in range(data.shape[1])], axis=1)
+    resampled = resample_to_grid(t, values[:, 1:], grid, rate)
     imu6 = resampled[:, :6]
     vel_z = resampled[:, 6] if cols.vz is not None else estimate_vel_z(imu6[:, 2])
     return ImuSeries(vel_z.astype(np.float32), imu6.astype(np.float32), rate, cols.vz is None)
+
+
+def resample_to_grid(t: np.ndarray, data: np.ndarray, grid: np.ndarray, rate: float) -> np.ndarray:
+    """(len(grid), c) float64 from (n, c) samples at times `t` (s, increasing; `rate`: theirs, Hz): low-passed
+    at `IMU_ANTI_ALIAS_HZ` when faster than `IMU_ANTI_ALIAS_ABOVE`, then linearly interpolated at `grid`."""
+    x = np.asarray(data, dtype=np.float64)
+    if rate > IMU_ANTI_ALIAS_ABOVE:
+        x = _lowpass(x, IMU_ANTI_ALIAS_HZ, rate)
+    return np.stack([np.interp(grid, t, x[:, c]) for c in range(x.shape[1])], axis=1)
 
 
 def _lowpass(x: np.ndarray, cutoff_hz: float, rate: float) -> np.ndarray:

@@ -4,7 +4,9 @@ A layout module turns its source into `Planned` recordings (name, group, split p
 anomaly, and a deferred `load`); `assign_splits` applies the split rule; `write_dataset` loads each
 recording in turn, writes it as an episode folder (audio.flac, imu.npz, events.json, meta.json: no
 trace.npz), cuts and labels its 2 s windows, then writes windows.csv and manifest.json, all in a temporary
-folder beside the target that is renamed into place.
+folder beside the target that is renamed into place. A recording read from time-stamped streams (the ros2
+layout) brings a `StreamReport`: no window overlaps its resets, and its counts go to the manifest's
+`import` section under `streams`, by recording, with the windows left out and those holding filled samples.
 
 Split rule: a recording with an anomaly is test data. Nominal recordings whose split the source fixes keep
 it; the others are split per group (MIMII: per machine type and id; folder: all together), in name order:
@@ -46,6 +48,8 @@ from benchmarks.episode import (
 from benchmarks.errors import OutputExistsError
 from benchmarks.importers.config import ImportConfig, SourceError
 from benchmarks.importers.signals import OUT_AUDIO_RATE
+from benchmarks.importers.timed import Span as TimeSpan
+from benchmarks.importers.timed import StreamReport
 from benchmarks.manifest import (
     DATASET_FORMAT_VERSION,
     EpisodeSpec,
@@ -80,6 +84,8 @@ class Span:
     """`collision` or `mechanical`."""
     sub_kind: str
     """What it was (an obstacle, a fault, a machine type), or `unspecified`."""
+    wheel: int = -1
+    """Faulty wheel of a mechanical anomaly (its column in the wheel odometry); -1: not known."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +104,17 @@ class Recording:
     """Window starts the source fixes (pre-cut windows); None: every 2 s window at the split's hop."""
     provenance: dict[str, Any] = field(default_factory=dict)
     """What the source was (files, original rates and channels), stored in meta.json."""
+    wheel_pos: np.ndarray | None = None
+    """(m, W) wheel encoder positions at 200 Hz, rad (the odometry modality); None: not recorded."""
+    streams: StreamReport | None = None
+    """What laying out time-stamped streams met (`benchmarks.importers.timed`); None: not read from them."""
+
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        """The sensors it carries, in `benchmarks.episode.ALL_MODALITIES` order."""
+        if self.vel_z is None:
+            return ("audio",)
+        return ("audio", "imu") if self.wheel_pos is None else ("audio", "imu", "odometry")
 
 
 @dataclass(frozen=True)
@@ -158,11 +175,15 @@ def assign_splits(plans: Sequence[Planned], config: ImportConfig) -> list[str]:
     return [s or "test" for s in splits]
 
 
-def _label_timeline(spans: Sequence[Span], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Per 200 Hz sample: label index, `SUB_KINDS` index (0 for names outside it), local sub-kind index."""
+def _label_timeline(
+    spans: Sequence[Span], n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str], np.ndarray]:
+    """Per 200 Hz sample: label index, `SUB_KINDS` index (0 for names outside it), local sub-kind index; the
+    local names; the faulty wheel (-1 where none or not known)."""
     label = np.zeros(n, dtype=np.int8)
     sub_global = np.zeros(n, dtype=np.int16)
     sub_local = np.zeros(n, dtype=np.int16)
+    wheel = np.full(n, -1, dtype=np.int8)
     names = ["none"]
     # Mechanical spans first: a collision overlapping a fault wins its samples.
     for span in sorted(spans, key=lambda s: s.kind == "collision"):
@@ -173,27 +194,41 @@ def _label_timeline(spans: Sequence[Span], n: int) -> tuple[np.ndarray, np.ndarr
         label[i0:i1] = COLLISION if span.kind == "collision" else MECHANICAL
         sub_global[i0:i1] = SUB_KINDS.index(span.sub_kind) if span.sub_kind in SUB_KINDS else 0
         sub_local[i0:i1] = names.index(span.sub_kind)
-    return label, sub_global, sub_local, names
+        wheel[i0:i1] = span.wheel if span.kind == "mechanical" else -1
+    return label, sub_global, sub_local, names, wheel
 
 
 def _window_labels(
-    label: np.ndarray, sub_local: np.ndarray, names: list[str], starts: np.ndarray
-) -> list[tuple[int, str] | None]:
-    """(label, sub-kind name) of each window, by the generated datasets' rule (`label_windows`)."""
-    wheel = np.full(label.shape, -1, dtype=np.int8)
-    out: list[tuple[int, str] | None] = []
-    for start, lab in zip(starts, label_windows(label, sub_local, wheel, starts), strict=True):
+    label: np.ndarray,
+    sub_local: np.ndarray,
+    names: list[str],
+    starts: np.ndarray,
+    wheel: np.ndarray,
+    wheel_pos: np.ndarray | None,
+) -> list[tuple[int, str, int] | None]:
+    """(label, sub-kind name, wheel) of each window, by the generated datasets' rule (`label_windows`: with
+    the wheel odometry, a fault window needs its known faulty wheel to have turned)."""
+    out: list[tuple[int, str, int] | None] = []
+    for start, lab in zip(starts, label_windows(label, sub_local, wheel, starts, wheel_pos), strict=True):
         if lab is None:
             out.append(None)
             continue
         if lab[0] == NORMAL:
-            out.append((NORMAL, "none"))
+            out.append((NORMAL, "none", -1))
             continue
         i0 = round(float(start) * IMU_RATE)
         i1 = i0 + round(WINDOW_S * IMU_RATE)
         seg_label, seg_sub = label[i0:i1], sub_local[i0:i1]
-        out.append((lab[0], names[int(np.bincount(seg_sub[seg_label == lab[0]]).argmax())]))
+        out.append((lab[0], names[int(np.bincount(seg_sub[seg_label == lab[0]]).argmax())], lab[2]))
     return out
+
+
+def _overlaps(starts: np.ndarray, spans: Sequence[TimeSpan]) -> np.ndarray:
+    """Which 2 s windows starting at `starts` overlap any of `spans`."""
+    hit = np.zeros(starts.shape, dtype=bool)
+    for lo, hi in spans:
+        hit |= (starts < hi) & (starts + WINDOW_S > lo)
+    return hit
 
 
 @dataclass
@@ -204,6 +239,7 @@ class _Written:
     name: str
     rows: list[WindowRow]
     files: dict[str, str]
+    streams: dict[str, Any] | None
 
 
 def _category(spans: Sequence[Span]) -> str:
@@ -214,8 +250,9 @@ def _category(spans: Sequence[Span]) -> str:
 
 def _write_episode(
     directory: Path, episode_id: str, split: str, plan: Planned, rec: Recording, config: ImportConfig
-) -> tuple[EpisodeSpec, list[WindowRow]]:
-    """Write one episode folder; its spec and its window rows (window_id filled in later)."""
+) -> tuple[EpisodeSpec, list[WindowRow], dict[str, Any] | None]:
+    """Write one episode folder; its spec, its window rows (window_id filled in later) and, for a recording
+    read from time-stamped streams, its counts for the manifest."""
     audio = np.asarray(rec.audio, dtype=np.float32)
     duration = audio.shape[0] / OUT_AUDIO_RATE
     if rec.vel_z is not None:
@@ -224,13 +261,14 @@ def _write_episode(
     audio = audio[: math.floor(duration * OUT_AUDIO_RATE + 1e-9)]
     vel_z = np.zeros(n_imu, np.float32) if rec.vel_z is None else rec.vel_z[:n_imu].astype(np.float32)
     imu6 = np.zeros((n_imu, 6), np.float32) if rec.imu6 is None else rec.imu6[:n_imu].astype(np.float32)
+    wheel_pos = None if rec.wheel_pos is None else np.asarray(rec.wheel_pos[:n_imu], dtype=np.float64)
     for span in rec.spans:
         if span.start_s >= duration:
             raise SourceError(
                 f"recording {plan.name!r}: anomaly span start {span.start_s:g} s is past its end "
                 f"({duration:.3f} s); allowed: spans inside the recording"
             )
-    label, sub_global, sub_local, names = _label_timeline(rec.spans, n_imu)
+    label, sub_global, sub_local, names, wheel = _label_timeline(rec.spans, n_imu)
     if rec.starts_s is not None:
         starts = np.asarray(rec.starts_s, dtype=np.float64)
     else:
@@ -240,6 +278,15 @@ def _write_episode(
         raise SourceError(
             f"recording {plan.name!r}: {duration:.3f} s long; allowed: at least one {WINDOW_S:g} s window"
         )
+    counts: dict[str, Any] | None = None
+    if rec.streams is not None:
+        skipped = _overlaps(starts, rec.streams.reset_s)
+        starts = starts[~skipped]
+        counts = {name: dataclasses.asdict(c) for name, c in rec.streams.counts.items()}
+        counts |= {
+            "windows_skipped": int(skipped.sum()),
+            "windows_with_fill": int(_overlaps(starts, rec.streams.filled_s).sum()),
+        }
     category = _category(rec.spans)
     anomalies = tuple(
         AnomalySpan(onset=s.start_s, end=min(s.end_s, duration), kind=s.kind, sub_kind=s.sub_kind)
@@ -251,8 +298,8 @@ def _write_episode(
         imu6=imu6,
         label=label,
         sub_kind=sub_global,
-        label_wheel=np.full(n_imu, -1, dtype=np.int8),
-        wheel_pos=np.zeros((n_imu, 0)),
+        label_wheel=wheel,
+        wheel_pos=np.zeros((n_imu, 0)) if wheel_pos is None else wheel_pos,
     )
     write_imported_episode(
         directory / episode_id,
@@ -260,15 +307,21 @@ def _write_episode(
         synth_audio.Audio(samples=audio, sample_rate=OUT_AUDIO_RATE),
         imu,
         anomalies,
-        ("audio",) if rec.vel_z is None else ("audio", "imu"),
+        rec.modalities,
         {"name": plan.name, **rec.provenance},
     )
     rows = []
-    for start, lab in zip(starts, _window_labels(label, sub_local, names, starts), strict=True):
+    # The revolution rule of a fault window needs the faulty wheel: where some fault's wheel is not known,
+    # every fault window is kept as the label says.
+    known = wheel_pos is not None and not np.any((label == MECHANICAL) & (wheel < 0))
+    labelled = _window_labels(label, sub_local, names, starts, wheel, wheel_pos if known else None)
+    for start, lab in zip(starts, labelled, strict=True):
         if lab is None:
             continue  # a window only partly in a fault: ambiguous, as in generated datasets
         rows.append(
-            WindowRow(0, episode_id, float(start), split, lab[0], LABELS[lab[0]], lab[1], -1, plan.unit_id)
+            WindowRow(
+                0, episode_id, float(start), split, lab[0], LABELS[lab[0]], lab[1], lab[2], plan.unit_id
+            )
         )
     spec = EpisodeSpec(
         episode_id=episode_id,
@@ -278,7 +331,7 @@ def _write_episode(
         snr_db=math.nan,
         options=ScenarioOptions(duration, unit_id=plan.unit_id, severity=(0.0, 0.0), transient_density=0.0),
     )
-    return spec, rows
+    return spec, rows, counts
 
 
 def _preset(layout: str, source: Path, config: ImportConfig, written: Sequence[_Written]) -> Preset:
@@ -379,12 +432,18 @@ def write_dataset(
             index = counts.get((split, category), 0)
             counts[(split, category)] = index + 1
             episode_id = f"{split}-{category}-{index:04d}"
-            spec, rows = _write_episode(tmp, episode_id, split, plan, rec, config)
+            spec, rows, streams = _write_episode(tmp, episode_id, split, plan, rec, config)
             files = episode_checksums(tmp / episode_id, IMPORTED)
-            written.append(_Written(spec, plan.name, rows, files))
-            modalities.add(("audio",) if rec.vel_z is None else ("audio", "imu"))
+            written.append(_Written(spec, plan.name, rows, files, streams))
+            modalities.add(rec.modalities)
         if len(modalities) > 1:
-            raise SourceError(f"{source}: some recordings have IMU and some do not; allowed: all or none")
+            kinds = " and ".join(sorted("+".join(m) for m in modalities))
+            raise SourceError(
+                f"{source}: the recordings carry different sensors ({kinds}); allowed: the same in all"
+            )
+        streams = {w.name: w.streams for w in written if w.streams is not None}
+        if streams:
+            extra = {**extra, "streams": streams}
         rows = [r for w in written for r in w.rows]
         rows = [dataclasses.replace(r, window_id=i) for i, r in enumerate(rows)]
         preset = _preset(layout, Path(source), config, written)

@@ -178,9 +178,15 @@ def _audio(
     chunks: list[tuple[float | None, np.ndarray]] = []
     for i, (log_ns, m) in enumerate(messages[streams["audio"]]):
         t = _header_s(m, info.start_ns) if stamped else _seconds(log_ns, info.start_ns) if i == 0 else None
-        chunks.append(
-            (t, _decode_pcm(bytes(m.audio.data if stamped else m.data), sample_format, channels, where))
-        )
+        payload = m.audio if stamped else m
+        data = getattr(payload, "data", None)
+        if data is None:  # another package's AudioData under the same name
+            fields = ", ".join(getattr(payload, "__slots__", ())) or "none"
+            raise SourceError(
+                f"{where}: its AudioData has no field `data` (its fields: {fields}); supported: "
+                "audio_common_msgs/AudioData as `uint8[] data` (ros-drivers/audio_common)"
+            )
+        chunks.append((t, _decode_pcm(bytes(data), sample_format, channels, where)))
     facts = {
         "audio_rate": rate,
         "audio_channels": channels,

@@ -345,6 +345,27 @@ def test_flags_the_mapping_file_and_the_defaults(tmp_path: Path) -> None:
 # ---------------------------------------------------------------------------------------- bad bags
 
 
+def _other_audio_bag(path: Path) -> None:
+    """A bag whose audio is another package's `audio_common_msgs/AudioDataStamped` (typed sample arrays)."""
+    writer = Writer(open(path, "wb"))  # noqa: SIM115 - closed by finish below
+    imu = writer.register_msgdef(msgs.IMU, msgs.schema_text(msgs.IMU))
+    info = writer.register_msgdef(msgs.AUDIO_INFO, msgs.schema_text(msgs.AUDIO_INFO))
+    header = msgs.schema_text(msgs.AUDIO_DATA_STAMPED).split(msgs.SEPARATOR)[1]  # std_msgs/Header's section
+    text = "std_msgs/Header header\naudio_common_msgs/AudioData audio\n" + msgs.SEPARATOR + header
+    text += (
+        f"{msgs.SEPARATOR}\nMSG: audio_common_msgs/AudioData\nfloat32[] float32_data\nint16[] int16_data\n"
+    )
+    audio = writer.register_msgdef(msgs.AUDIO_DATA_STAMPED, text)
+    for i in range(400):
+        writer.write_message("/imu/data", imu, {"header": _header(i / 200)}, log_time=_ns(i / 200))
+    fmt = {"channels": 1, "sample_rate": 16000, "sample_format": "S16LE"}
+    writer.write_message("/audio/audio_info", info, fmt, log_time=_ns(0))
+    for j in range(20):
+        message = {"header": _header(j / 10), "audio": {"int16_data": [0] * 1600}}
+        writer.write_message(Topics().audio, audio, message, log_time=_ns(j / 10))
+    writer.finish()
+
+
 def _import_fails(source: Path, out: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> str:
     code = main(["import", str(source), "--layout", "ros2", "--out", str(out), "--no-progress", *extra])
     err = capsys.readouterr().err.strip()
@@ -371,6 +392,9 @@ def test_bad_bags_exit_2_with_one_line_and_leave_nothing(
     err = _import_fails(source, out, capsys, "--imu-topic", "/status")
     assert err.endswith("a.mcap, topic /status: message type std_msgs/msg/String for the imu stream; "
                         "supported: sensor_msgs/msg/Imu")  # fmt: skip
+    _other_audio_bag(bag)
+    err = _import_fails(source, out, capsys)
+    assert "its AudioData has no field `data` (its fields: float32_data, int16_data); supported: " in err
     bag.write_bytes(data[: len(data) // 2])
     err = _import_fails(source, out, capsys)
     assert (

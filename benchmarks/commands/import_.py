@@ -51,7 +51,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         "--audio-rate",
         type=float,
         default=None,
-        help="folder, mimii: the rate every audio file must have, Hz (default: any, resampled); "
+        help="folder, mimii, ros2: the rate all audio must have, Hz (default: any, resampled); "
         "windows: the rate of the audio windows (default 4410)",
     )
     add_scale_argument(shared, "short", "training budget `train` uses on this dataset by default")

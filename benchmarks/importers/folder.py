@@ -94,8 +94,8 @@ def read_labels(path: Path, names: set[str], default_kind: str) -> dict[str, lis
         if name not in names:
             known = ", ".join(sorted(names)[:5])
             raise SourceError(
-                f"{where}, column 'recording': {name!r} is not a recording of the source; allowed: an audio "
-                f"file's path without suffix, e.g. {known}"
+                f"{where}, column 'recording': {name!r} is not a recording of the source; allowed: a "
+                f"recording's file path under the source without suffix, e.g. {known}"
             )
         bounds = []
         for column in ("start_s", "end_s"):

@@ -260,4 +260,3 @@ def write_pages(pages: dict[Path, str]) -> list[Path]:
         path.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomic(path, pages[path])
     return written
-

@@ -14,10 +14,12 @@ maintenance criteria of AGV / AMR wheels, hubs, bearings and gearboxes:
   mm, because it then thumps at every revolution). It is geometry: while the flat passes the floor, the
   wheel's collision sphere is raised towards its axle so that its bottom sits where the flat's lowest
   point does (`FaultForcing.flat_lift`); the corner of the robot pivots down on the flat's leading edge by
-  up to h, lands on the flat (the slap) and pivots up on its trailing edge. The slap exchanges
-  J = m_c v sin(acos(1 - h / r)) ~ m_c v sqrt(2 h / r) (m_c the robot's mass over its wheels, v the rim
-  speed, r the radius), the law of a benign step (`synth_audio.transients.strike_impulse`), recorded as the
-  strike the audio sounds.
+  up to h, lands on the flat (the slap) and pivots up on its trailing edge. Landing stops the corner's
+  descent (v sin a, a = acos(1 - h / r) the flat's half-angle) and the pivot on the trailing edge lifts it
+  at once by as much (the rimless wheel's impact): the slap reverses the corner's vertical velocity and
+  exchanges J = 2 m_c v sin a ~ 2 m_c v sqrt(2 h / r) (m_c the robot's mass over its wheels, v the rim
+  speed, r the radius), twice a benign step's (`synth_audio.transients.strike_impulse`, which only stops
+  or starts a descent), recorded as the strike the audio sounds.
 - out_of_round: a wheel whose tread runs eccentric to its axle (a bent rim, or a tread worn or swollen
   unevenly), radial runout e = s `RUNOUT_M` (5 mm, a wheel that visibly rides up and down; a new wheel runs
   within a few tenths of a mm). It is
@@ -89,8 +91,9 @@ RATTLE_RATE = 35.0
 """Clunks per second of a loose hub at `NOMINAL_RIM_SPEED` (proportional to speed)."""
 NOMINAL_RIM_SPEED = 0.6
 """Rim speed at which the loose hub clunks `RATTLE_RATE` times a second, m/s."""
-WEAR_GAIN = 6.0
-"""Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+17 dB)."""
+WEAR_GAIN = 12.0
+"""Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+22 dB: pitted,
+worn teeth that howl)."""
 MOTOR_TORQUE_LOSS = 0.4
 """Fraction of motor torque lost at severity 1."""
 MOTOR_RIPPLE = 0.25
@@ -108,7 +111,7 @@ RUNOUT_RAMP_S = 0.2
 """Time over which an out-of-round wheel's runout grows from 0 at onset to its size, s (no step)."""
 
 RESONANCE: dict[str, tuple[float, float]] = {
-    "flat_spot": (480.0, 0.06),
+    "flat_spot": (150.0, 0.08),
     "out_of_round": (160.0, 0.08),
     "bearing": (1600.0, 0.03),
     "loose_wheel": (420.0, 0.06),
@@ -117,7 +120,9 @@ RESONANCE: dict[str, tuple[float, float]] = {
 """Structural resonance (Hz) and damping ratio each fault excites, before per-unit variation.
 
 All lie below 2.2 kHz, the Nyquist frequency of the detectors' 4410 Hz audio (the paper decimates by 10):
-the tyre and hub modes of a small aluminium-frame robot, not the kHz ring of an isolated bearing race."""
+the tyre and hub modes of a small aluminium-frame robot, not the kHz ring of an isolated bearing race. A
+flat's slap rings the wheel bouncing on its tread (1.1 kg on a polyurethane tread of about 1 MN/m: 150 Hz),
+a thud: the 2 ms contact of a tread on the floor carries little above a few hundred Hz."""
 
 
 def bpfo_order() -> float:
@@ -149,7 +154,7 @@ def strike_impulse(
     v = np.abs(np.asarray(rim_speed, dtype=np.float64))
     size = fault.size
     if fault.kind == "flat_spot":
-        return corner_mass * v * math.sin(math.acos(max(1.0 - size / radius, -1.0)))
+        return 2.0 * corner_mass * v * math.sin(math.acos(max(1.0 - size / radius, -1.0)))
     if fault.kind == "bearing":
         ball_speed = v / radius * BEARING_PITCH_DIAMETER / 4.0
         return corner_mass * ball_speed * min(size / BEARING_BALL_DIAMETER, 1.0)

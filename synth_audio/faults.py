@@ -106,7 +106,8 @@ def _growl(drive: Drive, fault: FaultRecord, wheel_sound: np.ndarray, gate: np.n
     sos = signal.butter(2, band, btype="bandpass", fs=drive.sample_rate, output="sos")
     rough = signal.sosfilt(sos, wheel_sound.astype(np.float64)).astype(np.float32)
     passes = np.float32(2 * np.pi) * drive.phase(fault.wheel, float(fault.defect_order))
-    swell = np.float32(0.6) + np.float32(0.4) * np.cos(passes - np.float32(fault.phase))
+    at_spall = np.float32(fault.defect_order * fault.phase)  # where a ball meets the spall (the strikes)
+    swell = np.float32(0.6) + np.float32(0.4) * np.cos(passes - at_spall)
     gain = BEARING_GROWL * min(fault.size / SPALL_M, 1.0)
     return rough * swell * drive.ramp(gain * gate)
 

@@ -8,14 +8,18 @@ detectors' 4410 Hz audio and the 200 Hz IMU, `benchmarks.condition`) it computes
 
 - strikes (flat spot, bearing, loose hub): the response in the `STRIKE_GATE_S` after each pass of the defect
   (the angle crossing phase + 2 pi j / order) over the rest of the window, in the audio's squared envelope in
-  the kind's band (`sim.faults.envelope_band`) and in the vibration power (above `condition.SPLIT_HZ`) of
-  the seven IMU channels (z-velocity, accelerometer and gyroscope xyz): the time-synchronous average of the
-  defect's strike against everything else;
-- once-per-revolution motion (flat spot, out-of-round wheel, loose hub): the order-1 line of each IMU channel
-  below `condition.SPLIT_HZ`;
-- level: the audio envelope's mean (and, for a loose hub's rattle, the IMU's vibration power);
+  the kind's band (`sim.faults.envelope_band`) and in the motion power (above 0.5 Hz) of the IMU: the
+  time-synchronous average of the defect's strike against everything else;
+- once-per-revolution motion (flat spot, out-of-round wheel, loose hub): the order-1 line of the IMU's
+  smooth motion (below `condition.SPLIT_HZ`);
+- level: the audio envelope's mean (and, for a loose hub's rattle, the IMU's vibration power above
+  `condition.SPLIT_HZ`);
 - worn gears: the gear-mesh line and its motor-shaft sidebands in the raw audio over the lines between them
   (`condition.mesh_lines`), and the motor-shaft order line of the IMU's vibration.
+
+Each IMU indicator is the mean of its logarithm over the seven channels (z-velocity, accelerometer and
+gyroscope xyz): the chassis' response, however a strike spreads over the axes, as one indicator (seven
+separate ones would each add a chance of a nominal extreme, and bury the audio's evidence).
 
 A fault window is looked at through its faulty wheel at its defect's angle and order; a nominal window
 through every wheel at `NOMINAL_PHASES` angles (`nominal_views`). Each feature is compared with its
@@ -176,9 +180,9 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
         for v in views:
             angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angles[v.wheel]])
             mesh = condition.mesh_lines(audio, angle_audio, v.order, v.shaft)
-            lines = [condition.log_lines(vibration[:, c], angles[v.wheel], np.array([v.shaft]))
+            lines = [condition.log_lines(vibration[:, c], angles[v.wheel], np.array([v.shaft]))[:, 0]
                      for c in range(imu.shape[-1])]  # fmt: skip
-            out.append(np.concatenate([mesh, *lines], axis=1))
+            out.append(np.concatenate([mesh, np.mean(lines, axis=0)[:, None]], axis=1))
         return out
     env, t_env = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
     level = np.log(env.mean(axis=-1) + 1e-20)
@@ -186,19 +190,21 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
     power = condition.band_pass(channels, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
     motion = condition.band_pass(channels, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
     smooth = condition.band_pass(channels, IMU_RATE, (0.3, condition.SPLIT_HZ))
+    channels_of = range(channels.shape[1])
     for v in views:
         angle = angles[v.wheel]
         parts = [level]
         if kind in IMPULSIVE_KINDS:
             angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
             parts.append(np.log(_gated(env, angle_env, v, AUDIO_RATE / condition.ENVELOPE_BLOCK)))
-        for c in range(channels.shape[1]):
-            if kind in IMPULSIVE_KINDS:
-                parts.append(np.log(_gated(motion[:, c], angle, v, IMU_RATE)))
-            if kind in ("out_of_round", "loose_wheel", "flat_spot"):
-                parts.append(condition.log_lines(smooth[:, c], angle, np.array([1.0]))[:, 0])
-            if kind == "loose_wheel":
-                parts.append(np.log(power[:, c].mean(axis=-1) + 1e-20))
+            parts.append(
+                np.mean([np.log(_gated(motion[:, c], angle, v, IMU_RATE)) for c in channels_of], axis=0)
+            )
+        if kind in ("out_of_round", "loose_wheel", "flat_spot"):
+            lines = [condition.log_lines(smooth[:, c], angle, np.array([1.0]))[:, 0] for c in channels_of]
+            parts.append(np.mean(lines, axis=0))
+        if kind == "loose_wheel":
+            parts.append(np.mean([np.log(power[:, c].mean(axis=-1) + 1e-20) for c in channels_of], axis=0))
         out.append(np.stack(parts, axis=1))
     return out
 

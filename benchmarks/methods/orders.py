@@ -5,14 +5,17 @@ What a vibration analyst who knows the robot's drive train computes on every 2 s
 wheel's angle from its encoder (the odometry modality, `Windows.odometry`), for every wheel in turn (the
 faulty wheel, the defect's angle and the balls' slip are unknown to it):
 
-- the order-1 line of the chassis' smooth motion (each IMU channel below `condition.SPLIT_HZ`): a wheel that
-  rides up and down or wobbles once per revolution;
-- the time-synchronous average's strength of the IMU's vibration power (each channel, 0.5-100 Hz) over one
-  revolution and over one ball pass, and of the audio's squared envelope over one revolution in the tyre's
-  band and over one ball pass in the hub's band: a strike that repeats at the same wheel angle;
+- the order-1 line of the chassis' smooth motion (below `condition.SPLIT_HZ`): a wheel that rides up and
+  down or wobbles once per revolution;
+- the time-synchronous average's strength of the IMU's motion power (0.5-100 Hz) over one revolution and
+  over one ball pass, and of the audio's squared envelope over one revolution in the tyre's band and over
+  one ball pass in the hub's band: a strike that repeats at the same wheel angle;
 - the gear-mesh line of the audio over the lines between its sidebands, and the two motor-shaft sidebands;
-- not per wheel: the audio envelope's level in the tyre's, the hub's and the loose hub's bands, and each IMU
-  channel's vibration power.
+- not per wheel: the audio envelope's level and crest (peak over median) in the tyre's, the hub's and the
+  loose hub's bands, the IMU's vibration power (above `condition.SPLIT_HZ`) and the crest of its motion.
+
+Each IMU indicator is the mean of its logarithm over the seven channels (z-velocity, accelerometer and
+gyroscope xyz), as in the audit's oracle.
 
 The orders come from the drive train of the robot model (`sim.faults.bpfo_order`, pinion teeth x gear
 ratio); a robot team knows its own. Features are logarithms, floored where noise leaves them (a line at
@@ -43,6 +46,11 @@ def _log_sync(x: np.ndarray, angle: np.ndarray, order: float) -> np.ndarray:
     return np.asarray(np.log(np.maximum(condition.synchronous_strength(x, angle, order), 1.0)))
 
 
+def _log_crest(x: np.ndarray) -> np.ndarray:
+    """(N,) log of the peak of (N, n) powers over their median: a strike stands out of the window."""
+    return np.asarray(np.log(x.max(axis=-1) + 1e-30) - np.log(np.median(x, axis=-1) + 1e-30))
+
+
 def order_features(batch: Windows, model: str = "skid4") -> np.ndarray:
     """(N, F) the detector's features of a window batch (see the module); F depends on the wheel count."""
     if batch.odometry is None or batch.imu6 is None:
@@ -57,28 +65,33 @@ def _chunk_features(batch: Windows, model: str) -> np.ndarray:
     mesh = float(drive.pinion_teeth * drive.gear_ratio)
     assert batch.odometry is not None and batch.imu6 is not None
     imu = np.concatenate([batch.imu[:, :, None], batch.imu6], axis=2).transpose(0, 2, 1)  # (k, 7, 400)
+    channels = range(imu.shape[1])
     audio = batch.audio.astype(np.float64).sum(axis=-1)  # (k, 8820)
     smooth = condition.band_pass(imu, IMU_RATE, (0.3, condition.SPLIT_HZ))
-    vibration = condition.band_pass(imu, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
+    motion = condition.band_pass(imu, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
+    vibration = condition.band_pass(imu, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
     envelopes: dict[str, np.ndarray] = {}
     for kind in BANDS:
         envelopes[kind], t_env = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
     t_imu = np.arange(IMU_LEN) / IMU_RATE
     t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
-    parts: list[np.ndarray] = [np.log(env.mean(axis=-1) + 1e-20)[:, None] for env in envelopes.values()]
-    parts.append(np.log(vibration.mean(axis=-1) + 1e-20))
+    parts: list[np.ndarray] = []
+    for env in envelopes.values():
+        parts += [np.log(env.mean(axis=-1) + 1e-20), _log_crest(env)]
+    parts.append(np.mean([np.log(vibration[:, c].mean(axis=-1) + 1e-20) for c in channels], axis=0))
+    parts.append(np.mean([_log_crest(motion[:, c]) for c in channels], axis=0))
     for w in range(batch.odometry.shape[2]):
         angle = batch.odometry[:, :, w].astype(np.float64)
         angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
         angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angle])
-        for c in range(imu.shape[1]):
-            parts.append(condition.log_lines(smooth[:, c], angle, np.array([1.0])))
-            parts.append(_log_sync(vibration[:, c], angle, 1.0)[:, None])
-            parts.append(_log_sync(vibration[:, c], angle, bpfo)[:, None])
-        parts.append(_log_sync(envelopes["flat_spot"], angle_env, 1.0)[:, None])
-        parts.append(_log_sync(envelopes["bearing"], angle_env, bpfo)[:, None])
-        parts.append(condition.mesh_lines(audio, angle_audio, mesh, drive.gear_ratio))
-    return np.concatenate(parts, axis=1)
+        one = np.array([1.0])
+        parts.append(np.mean([condition.log_lines(smooth[:, c], angle, one)[:, 0] for c in channels], axis=0))
+        parts.append(np.mean([_log_sync(motion[:, c], angle, 1.0) for c in channels], axis=0))
+        parts.append(np.mean([_log_sync(motion[:, c], angle, bpfo) for c in channels], axis=0))
+        parts.append(_log_sync(envelopes["flat_spot"], angle_env, 1.0))
+        parts.append(_log_sync(envelopes["bearing"], angle_env, bpfo))
+        parts += list(condition.mesh_lines(audio, angle_audio, mesh, drive.gear_ratio).T)
+    return np.stack(parts, axis=1)
 
 
 class OrderReference(GaussianReference):

@@ -52,9 +52,9 @@ def _record(kind: str, severity: float, **extra: float) -> FaultRecord:
 def test_strike_impulses_follow_the_defect_geometry() -> None:
     corner, r = 5.0, 0.08
     v = np.array([0.5, 1.0])
-    # A flat of depth h = s^2 H slaps like a step of height h: dv = v sin(acos(1 - h / r)).
+    # A flat of depth h = s^2 H reverses its corner's fall: dv = 2 v sin(acos(1 - h / r)), twice a step's.
     h = 0.25 * FLAT_DEPTH_M
-    expected = corner * v * np.sqrt(1.0 - (1.0 - h / r) ** 2)
+    expected = 2.0 * corner * v * np.sqrt(1.0 - (1.0 - h / r) ** 2)
     np.testing.assert_allclose(strike_impulse(_record("flat_spot", 0.5), v, corner, r), expected, rtol=1e-12)
     # A hub slammed across its play delta by the tyre's force F: J = sqrt(2 m_wheel F delta), any speed.
     delta = PLAY_M

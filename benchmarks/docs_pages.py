@@ -1,5 +1,5 @@
-"""The generated parts of the documentation: `docs/results.md`, the README's headline table and the method
-list of `docs/detectors.md` (`msvdd-bench docs`, `make docs`).
+"""The generated parts of the documentation: `docs/results.md`, the README's headline table, the method
+list of `docs/detectors.md` and the severity curves of `docs/sweeps.md` (`msvdd-bench docs`, `make docs`).
 
 Every figure comes from a results file (`results.json` of `msvdd-bench run` or `evaluate`, the JSON of
 `msvdd-bench perf`) and is formatted by the report's code (`benchmarks.report`); the method list comes from
@@ -30,6 +30,8 @@ from benchmarks.report import (
     result_tables,
 )
 from benchmarks.results_file import RunResults
+from benchmarks.sweeps.report import AUC_TITLES, auc_table, reported_keys
+from benchmarks.sweeps.run import KIND_KEYS, SweepResult
 from msvdd.atomic import write_text_atomic
 
 GENERATED_NOTE = "<!-- Written by `msvdd-bench docs` (`make docs`) from results files; do not edit. -->"
@@ -40,6 +42,8 @@ RESULTS_BLOCK = "results"
 """Name of the README's headline block."""
 METHODS_BLOCK = "methods"
 """Name of the method list's block in docs/detectors.md."""
+SWEEP_BLOCK = "severity"
+"""Name of the severity curves' block in docs/sweeps.md."""
 
 
 @dataclass(frozen=True)
@@ -200,6 +204,24 @@ def methods_block() -> str:
     return "\n".join(lines)
 
 
+def sweep_block(sweep: SweepResult, shown: str) -> str:
+    """docs/sweeps.md's severity curves: per fault kind, the AUC of each method (and of the oracle, where the
+    sweep ran it) at each point, from a finished sweep folder."""
+    spec = sweep.spec
+    overrides = ", ".join(f"{k} = {v!r}" for k, v in spec.overrides) or "none"
+    lines = [
+        GENERATED_NOTE,
+        f"Written by `{sweep.command}` (base preset `{spec.base}`, overrides: {overrides}; dataset seeds "
+        f"{', '.join(map(str, spec.seeds))}; {sweep.machine}); the sweep folder `{shown}` has the figures. "
+        "Cells: AUC (%) of that kind's windows against the normal ones, with its 95 % episode-cluster "
+        "interval.",
+    ]
+    for key in reported_keys(sweep):
+        if key in KIND_KEYS:
+            lines += ["", f"**{AUC_TITLES[key]}**", "", *auc_table(sweep, key)]
+    return "\n".join(lines)
+
+
 def replace_block(text: str, name: str, block: str, where: str) -> str:
     """`text` with what lies between `<!-- name:begin -->` and `<!-- name:end -->` replaced by `block`.
 
@@ -224,13 +246,19 @@ class DocsTargets:
     """README.md, whose results block gets the first run's headline table (None: left alone)."""
     detectors: Path | None
     """docs/detectors.md, whose methods block gets the method list (None: left alone)."""
+    sweeps: Path | None = None
+    """docs/sweeps.md, whose severity block gets a sweep's curves per fault kind (None: left alone)."""
 
 
 def render(
-    runs: Sequence[RunResults], perf: PerfResults | None, targets: DocsTargets, root: Path | None = None
+    runs: Sequence[RunResults],
+    perf: PerfResults | None,
+    targets: DocsTargets,
+    root: Path | None = None,
+    sweep: SweepResult | None = None,
 ) -> dict[Path, str]:
-    """Every target's new text (files not given in `targets` are left out). Paths in the pages are shown
-    relative to `root` when they lie under it."""
+    """Every target's new text (files not given in `targets` are left out; docs/sweeps.md only with a
+    `sweep`). Paths in the pages are shown relative to `root` when they lie under it."""
 
     def shown(path: Path) -> str:
         if root is not None and path.resolve().is_relative_to(root.resolve()):
@@ -245,6 +273,10 @@ def render(
     if targets.detectors is not None:
         text = targets.detectors.read_text(encoding="utf-8")
         out[targets.detectors] = replace_block(text, METHODS_BLOCK, methods_block(), str(targets.detectors))
+    if targets.sweeps is not None and sweep is not None:
+        text = targets.sweeps.read_text(encoding="utf-8")
+        block = sweep_block(sweep, shown(sweep.out))
+        out[targets.sweeps] = replace_block(text, SWEEP_BLOCK, block, str(targets.sweeps))
     return out
 
 

@@ -388,6 +388,11 @@ def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
     return rows
 
 
+def kind_interval(scored: Scored) -> Interval:
+    """The oracle's AUC on a fault kind (every severity) with its episode-cluster bootstrap interval."""
+    return _interval(scored.positive, scored.negative, scored.positive_episode, scored.negative_episode)
+
+
 def _interval(positive: np.ndarray, negative: np.ndarray, pos_ep: np.ndarray, neg_ep: np.ndarray) -> Interval:
     """AUC of `positive` over `negative` scores with its episode-cluster bootstrap interval."""
     scores = np.r_[positive, negative]

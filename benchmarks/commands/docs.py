@@ -20,6 +20,13 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--perf", type=Path, default=None, help="the JSON of `msvdd-bench perf` to add")
     p.add_argument(
+        "--sweep",
+        type=Path,
+        default=None,
+        help="a finished `msvdd-bench sweep` folder (the severity spec) whose curves per fault kind go into "
+        "docs/sweeps.md",
+    )
+    p.add_argument(
         "--docs", type=Path, default=Path("docs"), help="the docs folder (results.md, detectors.md)"
     )
     p.add_argument(
@@ -35,16 +42,19 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     from benchmarks.docs_pages import DocsTargets, changed, read_perf, render, write_pages
     from benchmarks.results_file import read_results
+    from benchmarks.sweeps.run import read_sweep
 
     runs = [read_results(path) for path in args.runs]
     perf = read_perf(args.perf) if args.perf is not None else None
+    sweep = read_sweep(args.sweep) if args.sweep is not None else None
     detectors: Path = args.docs / "detectors.md"
     targets = DocsTargets(
         results=args.docs / "results.md",
         readme=args.readme if args.readme.is_file() else None,
         detectors=detectors if detectors.is_file() else None,
+        sweeps=args.docs / "sweeps.md" if sweep is not None else None,
     )
-    pages = render(runs, perf, targets, root=Path.cwd())
+    pages = render(runs, perf, targets, root=Path.cwd(), sweep=sweep)
     if args.check:
         stale = changed(pages)
         for path in stale:

@@ -1,5 +1,9 @@
 """A sweep's outputs: `sweep.json`, `sweep.md` and one PNG curve per AUC, each written atomically.
 
+The AUCs are those of every anomaly, of collisions and of mechanical faults against normal windows, then of
+each fault kind that the sweep's datasets hold (with the audit's oracle where the spec asks for it: it scores
+faults per kind only).
+
 Every cell is a seed-mean AUC with its 95 % episode-cluster bootstrap interval (`benchmarks.uncertainty`,
 computed by each point's run). A plot has one line per method with the intervals as error bars; with several
 dataset seeds the line is the mean over them and the bar spans the lowest to the highest end of their
@@ -15,7 +19,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from benchmarks.sweeps.run import AUC_KEYS, PointResult, SweepResult
+from benchmarks.sweeps.run import AUC_KEYS, KIND_KEYS, PointResult, SweepResult
 from benchmarks.uncertainty import CONFIDENCE, Interval, format_interval
 from msvdd.atomic import atomic_path, write_text_atomic
 
@@ -23,8 +27,25 @@ AUC_TITLES: dict[str, str] = {
     "auc": "AUC, every anomaly against normal",
     "auc_collision": "AUC, collisions against normal",
     "auc_mechanical": "AUC, mechanical faults against normal",
+    **{key: f"AUC, {key.removeprefix('auc_')} faults against normal" for key in KIND_KEYS},
 }
 """Heading of each AUC's table and plot."""
+
+
+def reported_keys(result: SweepResult) -> list[str]:
+    """`AUC_KEYS`, then each of `KIND_KEYS` that some method has a value for at some point."""
+    found = [
+        key
+        for key in KIND_KEYS
+        if any(math.isfinite(m.auc[key].value) for r in result.results for m in r.methods.values())
+    ]
+    return [*AUC_KEYS, *found]
+
+
+def _has(result: SweepResult, method: str, key: str) -> bool:
+    return any(
+        method in r.methods and math.isfinite(r.methods[method].auc[key].value) for r in result.results
+    )
 
 
 def write_outputs(result: SweepResult) -> list[Path]:
@@ -32,7 +53,7 @@ def write_outputs(result: SweepResult) -> list[Path]:
     out = result.out
     (out / "figures").mkdir(parents=True, exist_ok=True)
     written = [write_text_atomic(out / "sweep.json", json.dumps(to_json(result), indent=2) + "\n")]
-    for key in AUC_KEYS:
+    for key in reported_keys(result):
         figure = out / "figures" / f"{key}.png"
         with atomic_path(figure, suffix=figure.suffix) as tmp:  # matplotlib picks the format by the suffix
             plot(result, key, tmp)
@@ -73,7 +94,6 @@ def markdown(result: SweepResult) -> str:
     """`sweep.md`: the setting, then one table per AUC (rows: point and dataset seed; columns: methods)."""
     spec, axis = result.spec, result.spec.axis
     names = _methods(result)
-    label = {p.index: p.label for p in result.points}
     overrides = ", ".join(f"{k} = {v!r}" for k, v in spec.overrides) or "none"
     episodes = sorted({(r.normal_episodes, r.anomalous_episodes) for r in result.results})
     lines = [
@@ -90,15 +110,9 @@ def markdown(result: SweepResult) -> str:
         "- Each point is a complete run folder (`points/pNN-seedS/`: dataset, models, results.md); its "
         "dataset comes from the preset recorded in `sweep.json`, so any point can be generated again alone.",
     ]
-    for key in AUC_KEYS:
+    for key in reported_keys(result):
         lines += ["", f"## {AUC_TITLES[key]}", "", f"![{key}](figures/{key}.png)", ""]
-        lines += [
-            "| " + " | ".join([axis.name, "dataset seed", *names]) + " |",
-            "| " + " | ".join(["---"] * (2 + len(names))) + " |",
-        ]
-        for r in result.results:
-            cells = [format_interval(r.methods[m].auc[key]) if m in r.methods else "" for m in names]
-            lines.append("| " + " | ".join([label[r.point], str(r.seed), *cells]) + " |")
+        lines += auc_table(result, key)
     lines += [
         "",
         "## Points",
@@ -111,6 +125,20 @@ def markdown(result: SweepResult) -> str:
         folder = os.path.relpath(r.folder, result.out.absolute())
         lines.append(f"| {point.label} | `{point.preset.name}` | `{folder}` | `{r.dataset_sha256[:16]}` |")
     return "\n".join(lines) + "\n"
+
+
+def auc_table(result: SweepResult, key: str) -> list[str]:
+    """The markdown table of one AUC: a row per point and dataset seed, a column per method that has it."""
+    names = [m for m in _methods(result) if _has(result, m, key)]
+    label = {p.index: p.label for p in result.points}
+    lines = [
+        "| " + " | ".join([result.spec.axis.name, "dataset seed", *names]) + " |",
+        "| " + " | ".join(["---"] * (2 + len(names))) + " |",
+    ]
+    for r in result.results:
+        cells = [format_interval(r.methods[m].auc[key]) if m in r.methods else "" for m in names]
+        lines.append("| " + " | ".join([label[r.point], str(r.seed), *cells]) + " |")
+    return lines
 
 
 def to_json(result: SweepResult) -> dict[str, Any]:
@@ -144,7 +172,11 @@ def to_json(result: SweepResult) -> dict[str, Any]:
                         "anomalous_episodes": r.anomalous_episodes,
                         "methods": {
                             name: {
-                                **{key: m.auc[key].to_dict() for key in AUC_KEYS},
+                                **{
+                                    key: m.auc[key].to_dict()
+                                    for key in (*AUC_KEYS, *KIND_KEYS)
+                                    if key in AUC_KEYS or math.isfinite(m.auc[key].value)
+                                },
                                 "train_seconds": m.train_seconds,
                             }
                             for name, m in r.methods.items()
@@ -172,7 +204,7 @@ def plot(result: SweepResult, key: str, path: Path) -> None:
     several = len(spec.seeds) > 1
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=110)
     try:
-        names = _methods(result)
+        names = [m for m in _methods(result) if _has(result, m, key)]
         width = (max(p.x for p in points) - min(p.x for p in points)) or 1.0
         for i, name in enumerate(names):
             ivs = [combined(groups[p.index], name, key) for p in points]

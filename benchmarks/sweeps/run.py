@@ -23,9 +23,17 @@ from benchmarks.executor import Executor
 from benchmarks.presets import Preset, expand_methods
 from benchmarks.sweeps.spec import SweepPoint, SweepSpec
 from benchmarks.uncertainty import Interval
+from msvdd.atomic import write_text_atomic
+from sim.vocab import FAULT_KINDS
 
 AUC_KEYS: tuple[str, ...] = ("auc", "auc_collision", "auc_mechanical")
 """The AUCs a sweep reports (all anomalies, collisions only, mechanical faults only, against normal)."""
+KIND_KEYS: tuple[str, ...] = tuple(f"auc_{kind}" for kind in FAULT_KINDS)
+"""The AUCs a sweep reports per fault kind (that kind's windows against normal), where a point has them."""
+ORACLE = "oracle"
+"""The name the audit's privileged fault oracle is reported under (a spec's `oracle = true`)."""
+ORACLE_FILE = "oracle.json"
+"""In a point's folder: the oracle's AUC per fault kind (`KIND_KEYS`), with its interval."""
 
 SPEC_COPY = "spec.toml"
 """The spec, copied into the sweep folder (what `--resume` compares with)."""
@@ -53,6 +61,8 @@ class PointTask:
     """Where torch methods train."""
     command: str
     """The sweep's command line, recorded in the point's report."""
+    oracle: bool = False
+    """Whether the audit's fault oracle scores the point's dataset too (`ORACLE_FILE`)."""
 
 
 @dataclass(frozen=True)
@@ -60,7 +70,8 @@ class MethodPoint:
     """One method's AUCs at one point and dataset seed."""
 
     auc: dict[str, Interval]
-    """By key of `AUC_KEYS`: the seed-mean AUC with its 95 % episode-cluster bootstrap interval."""
+    """By key of `AUC_KEYS` and `KIND_KEYS`: the seed-mean AUC with its 95 % episode-cluster bootstrap
+    interval (NaN where the point has no such windows, or the method gives no such AUC)."""
     train_seconds: float | None
     """Mean fit time, s."""
 
@@ -139,7 +150,20 @@ def run_point(task: PointTask) -> PointResult:
         except OSError:  # another attempt of this task finished first: its folder is as good
             if not results.is_file():
                 raise
+    if task.oracle and not (task.out / ORACLE_FILE).is_file():
+        write_oracle(task.out)
     return read_point(task.point, task.seed, task.out)
+
+
+def write_oracle(folder: Path) -> Path:
+    """Score a point's dataset (`folder`/dataset) with the audit's privileged fault oracle (no control) and
+    write its AUC per fault kind with the episode-cluster interval to `folder`/`ORACLE_FILE`."""
+    from benchmarks.audit import oracle
+    from benchmarks.dataset import open_dataset
+
+    scored = oracle.score_faults(open_dataset(folder / "dataset", verify=False), control=False)
+    doc = {f"auc_{s.kind}": oracle.kind_interval(s).to_dict() for s in scored}
+    return write_text_atomic(folder / ORACLE_FILE, json.dumps(doc, indent=2) + "\n")
 
 
 def read_point(point: int, seed: int, folder: Path) -> PointResult:
@@ -149,8 +173,13 @@ def read_point(point: int, seed: int, folder: Path) -> PointResult:
     for name, entry in doc["methods"].items():
         ci = entry.get("auc_ci95", {})
         methods[name] = MethodPoint(
-            auc={key: _interval(ci.get(key)) for key in AUC_KEYS},
+            auc={key: _interval(ci.get(key)) for key in (*AUC_KEYS, *KIND_KEYS)},
             train_seconds=entry.get("train_seconds"),
+        )
+    if (folder / ORACLE_FILE).is_file():
+        kinds = json.loads((folder / ORACLE_FILE).read_text())
+        methods[ORACLE] = MethodPoint(
+            auc={key: _interval(kinds.get(key)) for key in (*AUC_KEYS, *KIND_KEYS)}, train_seconds=None
         )
     uncertainty = doc.get("uncertainty", {})
     return PointResult(
@@ -171,6 +200,40 @@ def _interval(doc: dict[str, Any] | None) -> Interval:
     if not doc:
         return Interval(float("nan"), float("nan"), float("nan"))
     return Interval(num(doc.get("value")), num(doc.get("low")), num(doc.get("high")))
+
+
+def read_sweep(out: Path) -> SweepResult:
+    """A finished sweep read back from its folder: the spec's copy, every point's run folder and the setting
+    recorded in `sweep.json` (what `msvdd-bench docs --sweep` formats).
+
+    Raises:
+        InputNotFoundError: `out` has no `sweep.json` or spec copy (not a finished sweep folder).
+    """
+    import tomllib
+
+    from benchmarks.errors import InputNotFoundError
+    from benchmarks.sweeps.spec import parse_spec
+
+    out = Path(out)
+    record, copy = out / "sweep.json", out / SPEC_COPY
+    if not record.is_file() or not copy.is_file():
+        raise InputNotFoundError(f"not a finished sweep folder (no sweep.json or {SPEC_COPY}): {out}")
+    doc = json.loads(record.read_text())
+    spec = parse_spec(tomllib.loads(copy.read_text()), str(copy))
+    results = [
+        read_point(p["index"], int(r["seed"]), out / r["folder"]) for p in doc["points"] for r in p["runs"]
+    ]
+    return SweepResult(
+        spec=spec,
+        out=out,
+        points=spec.points(),
+        results=results,
+        command=str(doc["command"]),
+        executor=str(doc["executor"]),
+        seconds=float(doc["seconds"]),
+        date=str(doc["date"]),
+        machine=str(doc["machine"]),
+    )
 
 
 def prepare_folder(spec: SweepSpec, spec_text: str, out: Path, resume: bool) -> None:
@@ -234,6 +297,7 @@ def run_sweep(
             out=point_folder(out, p.index, seed).absolute(),
             device=device,
             command=f"{command}  # point {p.index} ({spec.axis.name} = {p.label}), dataset seed {seed}",
+            oracle=spec.oracle,
         )
         for p in points
         for seed in spec.seeds

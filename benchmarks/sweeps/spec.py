@@ -107,6 +107,7 @@ _KEYS: dict[str, bool] = {
     "values": True,
     "labels": False,
     "overrides": False,
+    "oracle": False,
 }
 """Top-level keys of a spec, and whether each is required."""
 
@@ -164,6 +165,9 @@ class SweepSpec:
     """The points' names, in order."""
     overrides: tuple[tuple[str, Any], ...] = ()
     """(Preset field, value) set on the base for every point."""
+    oracle: bool = False
+    """Whether every point's dataset is also scored by the audit's privileged fault oracle
+    (`benchmarks.audit.oracle`), reported as the method `oracle`, per fault kind."""
 
     def base_preset(self) -> Preset:
         """The base preset with the overrides applied."""
@@ -208,6 +212,7 @@ class SweepSpec:
             "values": [list(v) if isinstance(v, tuple) else v for v in self.values],
             "labels": list(self.labels),
             "overrides": {k: list(v) if isinstance(v, tuple) else v for k, v in self.overrides},
+            "oracle": self.oracle,
         }
 
 
@@ -318,6 +323,9 @@ def parse_spec(doc: dict[str, Any], source: str) -> SweepSpec:
     if not isinstance(raw_overrides, dict):
         raise bad("overrides", raw_overrides, "a table of preset fields")
     overrides = tuple((key, _override(key, value, axis, bad)) for key, value in raw_overrides.items())
+    oracle = doc.get("oracle", False)
+    if not isinstance(oracle, bool):
+        raise bad("oracle", oracle, "true or false")
     spec = SweepSpec(
         source=source,
         title=title,
@@ -330,6 +338,7 @@ def parse_spec(doc: dict[str, Any], source: str) -> SweepSpec:
         values=tuple(values),
         labels=tuple(labels),
         overrides=overrides,
+        oracle=oracle,
     )
     spec.points()  # every derived preset validates
     return spec

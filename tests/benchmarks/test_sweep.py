@@ -27,6 +27,7 @@ title = "tiny severity"
 base = "tiny"
 seeds = [0]
 methods = ["gaussian-early", "audio-rms"]
+oracle = true
 axis = "severity"
 values = [0.3, 1.0]
 
@@ -64,12 +65,18 @@ def test_a_two_point_sweep_writes_tables_and_plots_with_intervals(sweep: tuple[P
     for point, severity in zip(doc["points"], (0.3, 1.0), strict=True):
         assert point["preset"]["severity"] == [severity, severity]
         (run,) = point["runs"]
-        assert set(run["methods"]) == set(METHODS)
+        assert set(run["methods"]) == {*METHODS, "oracle"}
         assert run["normal_episodes"] >= 2 and run["anomalous_episodes"] >= 2
         for method in METHODS:
-            for key in ("auc", "auc_collision", "auc_mechanical"):
+            for key in ("auc", "auc_collision", "auc_mechanical", "auc_out_of_round"):
                 iv = run["methods"][method][key]
                 assert 0.0 <= iv["low"] <= iv["value"] <= iv["high"] <= 1.0, (method, key, iv)
+        # The oracle scores faults per kind only: this dataset's one kind, nothing else.
+        assert set(run["methods"]["oracle"]) == {"auc", "auc_collision", "auc_mechanical", "auc_out_of_round",
+                                                 "train_seconds"}  # fmt: skip
+        iv = run["methods"]["oracle"]["auc_out_of_round"]
+        assert 0.0 <= iv["low"] <= iv["value"] <= iv["high"] <= 1.0, iv
+        assert run["methods"]["oracle"]["auc"]["value"] is None
         dataset = open_dataset(out / run["folder"] / "dataset")  # a whole dataset, verified
         assert (
             dataset.preset.severity == (severity, severity) and dataset.preset.name == point["preset"]["name"]
@@ -84,7 +91,10 @@ def test_a_two_point_sweep_writes_tables_and_plots_with_intervals(sweep: tuple[P
     assert {e.options.severity for e in faults} == {(0.3, 0.3), (1.0, 1.0)}
     text = (out / "sweep.md").read_text()
     assert "| severity | dataset seed | gaussian-early | audio-rms |" in text
-    for key in ("auc", "auc_collision", "auc_mechanical"):
+    assert "| severity | dataset seed | gaussian-early | audio-rms | oracle |" in text  # per kind
+    assert "## AUC, out_of_round faults against normal" in text
+    assert not re.search(r"## AUC, (flat_spot|bearing|loose_wheel|motor_degradation)", text)
+    for key in ("auc", "auc_collision", "auc_mechanical", "auc_out_of_round"):
         png = (out / "figures" / f"{key}.png").read_bytes()
         assert png.startswith(b"\x89PNG") and len(png) > 5000
     assert not [p for p in out.rglob(".*") if p.name != ".gitignore"]  # no temporary file left
@@ -257,3 +267,28 @@ def test_speed_factors_scale_cruise_and_obstacle_legs_and_keep_near_miss_margins
     ):
         scale_speeds(scenario, drive=0.1)
     assert set(vocab.SURFACES) == set(AXES["test_surfaces"].allowed)
+
+
+def test_docs_write_a_sweeps_curves_per_fault_kind_from_its_folder(
+    sweep: tuple[Path, Path], tmp_path: Path
+) -> None:
+    from benchmarks.docs_pages import DocsTargets, render
+    from benchmarks.sweeps.run import read_sweep
+    from benchmarks.uncertainty import Interval, format_interval
+
+    _, out = sweep
+    page = tmp_path / "sweeps.md"
+    page.write_text("head\n<!-- severity:begin -->\nSTALE\n<!-- severity:end -->\ntail\n")
+    targets = DocsTargets(results=tmp_path / "results.md", readme=None, detectors=None, sweeps=page)
+    text = render([], None, targets, sweep=read_sweep(out))[page]
+    assert text.startswith("head\n<!-- severity:begin -->\n") and text.endswith(
+        "<!-- severity:end -->\ntail\n"
+    )
+    assert "STALE" not in text and "**AUC, out_of_round faults against normal**" in text
+    assert "| severity | dataset seed | gaussian-early | audio-rms | oracle |" in text
+    doc = json.loads((out / "sweep.json").read_text())
+    for point in doc["points"]:
+        methods = point["runs"][0]["methods"]
+        ivs = [methods[m]["auc_out_of_round"] for m in ("gaussian-early", "audio-rms", "oracle")]
+        cells = [format_interval(Interval(**{k: float(v) for k, v in iv.items()})) for iv in ivs]
+        assert f"| {point['label']} | 0 | {' | '.join(cells)} |" in text

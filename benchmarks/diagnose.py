@@ -1,9 +1,13 @@
 """A rerunnable diagnosis of a trained M-SVDD model: `msvdd-bench diagnose MODEL --data DIR`.
 
-It reads the training history saved with the model (the radius R per epoch), the final Sigma, the embeddings
-z of (seeded, stratified subsamples of) the training and test windows, the two terms of the score
-delta = D + w (mean_D / mean_Rec) Rec per test kind and anomaly sub-kind, and how much of z a window's
-loudness and motion explain. Nothing here changes the model; the same inputs give the same report.
+It reads the training history saved with the model (the radius R per epoch), the final Sigma and its raw
+estimate (before the ridge or the variance floor), the estimates of mu and Sigma a `svdd_fit="frozen"` model
+held during training (each one's spectrum and effective rank: does Sigma keep its rank?), the embeddings z of
+(seeded, stratified subsamples of) the training and test windows, the two terms of the score
+delta = D + w (mean_D / mean_Rec) Rec per test kind and anomaly sub-kind (D's share of the score, and D
+alone's AUC on collisions and faults), and how much of z a window's loudness and motion explain. Rec is the
+decoders' reconstruction error, or for `frame-density-msvdd` its frame-density term. Nothing here changes the
+model; the same inputs give the same report.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from benchmarks import methods
 from benchmarks.dataset import WindowRow, load_window_rows, open_dataset
 from benchmarks.errors import OutputExistsError, UserError
 from msvdd.contract import Windows
-from msvdd.model import MSVDD
+from msvdd.model import MSVDD, StatsFit
 from msvdd.training import TrainResult
 
 R_COLLAPSE_FRACTION = 1e-2
@@ -101,6 +105,22 @@ class Spectrum:
     """exp(entropy of the eigenvalues normalised to sum 1); between 1 and the dimension."""
     n_ridge_dominated: int
     """Eigenvalues <= RIDGE_FACTOR * eps (only for Sigma; 0 for the z covariances)."""
+
+
+@dataclass(frozen=True)
+class HeldEstimate:
+    """One estimate of mu and Sigma that a `svdd_fit="frozen"` model held fixed during training."""
+
+    epoch: int
+    """Epochs trained when it was made (0: the initial network; -1: the final estimate after training)."""
+    effective_rank: float
+    """Effective rank of the raw MCD covariance (before the floor)."""
+    smallest_over_largest: float
+    """Its smallest eigenvalue over its largest."""
+    floored: int
+    """Eigenvalues the variance floor raised."""
+    trace: float
+    """Its trace (the embeddings' scale)."""
 
 
 @dataclass(frozen=True)
@@ -193,6 +213,13 @@ class Diagnosis:
     """Training history; None for a model file saved before histories were kept."""
     sigma: Spectrum
     """Spectrum of the final Sigma (eps I included)."""
+    sigma_raw: Spectrum | None
+    """Spectrum of its raw MCD estimate, before the ridge or the variance floor (None: not saved with the
+    model, or a Euclidean model)."""
+    held: list[HeldEstimate]
+    """The estimates a `svdd_fit="frozen"` model held during training, and its final one (empty else)."""
+    second_term: str
+    """What Rec is: `reconstruction` (the decoders'), `frame density` (`frame_density`) or `none`."""
     embeddings: EmbeddingSummary
     """Spread of z."""
     terms: list[GroupTerms]
@@ -324,9 +351,28 @@ def summarise_history(history: TrainResult | None, s: int) -> HistorySummary | N
 
 
 def rec_weight(model: MSVDD) -> float:
-    """The factor of Rec in the score: w * mean_D / mean_Rec (0 without reconstruction)."""
-    cfg = model.config
-    return float(cfg.w * model.mean_d_ / model.mean_rec_) if cfg.use_reconstruction else 0.0
+    """The factor of Rec in the score: w * mean_D / mean_Rec (0 without a second term)."""
+    return float(model.config.w * model.mean_d_ / model.mean_rec_) if model.has_term else 0.0
+
+
+def second_term(model: MSVDD) -> str:
+    """What the score's second term is: `frame density`, `reconstruction` or `none`."""
+    if model.config.frame_density:
+        return "frame density"
+    return "reconstruction" if model.config.use_reconstruction else "none"
+
+
+def held_estimate(fit: StatsFit) -> HeldEstimate:
+    """A `StatsFit` of the model, summarised."""
+    lam = np.asarray(fit.eigenvalues, dtype=np.float64)
+    top = float(lam.max()) if lam.size else float("nan")
+    return HeldEstimate(
+        epoch=fit.epoch,
+        effective_rank=fit.effective_rank,
+        smallest_over_largest=float(lam.min()) / top if lam.size and top > 0 else float("nan"),
+        floored=fit.floored,
+        trace=float(lam.sum()),
+    )
 
 
 def score_terms(model: MSVDD, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
@@ -498,11 +544,14 @@ def diagnose(
         ),
         history=summarise_history(model.history_, cfg.s),
         sigma=spectrum(model.sigma_.detach().cpu().numpy(), cfg.eps),
+        sigma_raw=None if model.sigma_raw_ is None else spectrum(model.sigma_raw_.detach().cpu().numpy()),
+        held=[held_estimate(f) for f in model.stats_fits_],
+        second_term=second_term(model),
         embeddings=embeddings,
-        terms=decompose(d, wrec, kinds, sub_kinds, has_rec=cfg.use_reconstruction),
+        terms=decompose(d, wrec, kinds, sub_kinds, has_rec=model.has_term),
         weights=(
             weight_sweep(d, wrec / rec_weight(model), model.mean_d_ / model.mean_rec_, kinds)
-            if cfg.use_reconstruction and rec_weight(model) > 0
+            if model.has_term and rec_weight(model) > 0
             else []
         ),
         encoding=encoding(
@@ -546,8 +595,8 @@ def diagnosis_markdown(d: Diagnosis) -> str:
     """The diagnosis as a markdown report."""
     sections = [
         _header_lines(d),
-        _history_lines(d.history),
-        _sigma_lines(d.sigma),
+        _history_lines(d.history, d.config.get("svdd_fit", "batch")),
+        _sigma_lines(d),
         _embedding_lines(d.embeddings),
         _decomposition_lines(d),
         _encoding_lines(d.encoding),
@@ -565,15 +614,19 @@ def _header_lines(d: Diagnosis) -> list[str]:
         f"Dataset `{d.dataset}`; s = {cfg['s']}, eps = {cfg['eps']:g}, w = {cfg['w']:g}, "
         f"Mahalanobis {cfg['use_mahalanobis']}, reconstruction {cfg['use_reconstruction']}, "
         f"fusion {cfg['fusion']}"
-        + "".join(f", {k} {cfg[k]}" for k in ("audio_frontend", "imu_input") if k in cfg)
-        + ".",
+        + "".join(
+            f", {k} {cfg[k]}"
+            for k in ("audio_frontend", "imu_input", "svdd_fit", "bias_free", "frame_density")
+            if k in cfg
+        )
+        + f"; the score's second term: {d.second_term}.",
         f"Windows (seeded subsample, seed {c.seed}): train {c.train_used} of {c.train_total}; test "
         + ", ".join(f"{k} {c.test_used[k]} of {c.test_total[k]}" for k in KINDS)
         + " (kinds and sub-kinds kept in proportion).",
     ]
 
 
-def _history_lines(h: HistorySummary | None) -> list[str]:
+def _history_lines(h: HistorySummary | None, svdd_fit: str = "batch") -> list[str]:
     """Section 1: the radius R over training, and the losses."""
     lines = ["## 1. Training history", ""]
     if h is None:
@@ -581,11 +634,21 @@ def _history_lines(h: HistorySummary | None) -> list[str]:
             "No training history with a per-epoch R in the model file (saved before histories were kept)."
         )
         return lines
+    radius = (
+        [
+            f"{h.epochs} epochs, kept epoch {h.kept_epoch}. The loss holds mu and Sigma fixed between "
+            "estimates (svdd_fit frozen): the radius R is not trained.",
+        ]
+        if svdd_fit == "frozen"
+        else [
+            f"{h.epochs} epochs, kept epoch {h.kept_epoch}. R: initial sqrt(s) = {_f(h.radius_initial)}, "
+            f"first {_f(h.radius_first)}, min {_f(h.radius_min)}, max {_f(h.radius_max)}, "
+            f"last {_f(h.radius_last)}, kept {_f(h.radius_kept)}.",
+            f"R collapsed: **{'yes' if h.collapsed else 'no'}** ({h.rule}).",
+        ]
+    )
     lines += [
-        f"{h.epochs} epochs, kept epoch {h.kept_epoch}. R: initial sqrt(s) = {_f(h.radius_initial)}, "
-        f"first {_f(h.radius_first)}, min {_f(h.radius_min)}, max {_f(h.radius_max)}, "
-        f"last {_f(h.radius_last)}, kept {_f(h.radius_kept)}.",
-        f"R collapsed: **{'yes' if h.collapsed else 'no'}** ({h.rule}).",
+        *radius,
         f"Training loss first {_f(h.train_loss[0])}, last {_f(h.train_loss[-1])}"
         + (
             f"; validation loss at the kept epoch {_f(h.val_loss[h.kept_epoch])}"
@@ -599,15 +662,38 @@ def _history_lines(h: HistorySummary | None) -> list[str]:
     return lines
 
 
-def _sigma_lines(sig: Spectrum) -> list[str]:
-    """Section 2: the eigen-spectrum of Sigma."""
-    return [
+def _sigma_lines(d: Diagnosis) -> list[str]:
+    """Section 2: the eigen-spectrum of Sigma, of its raw estimate, and of the estimates held in training."""
+    sig = d.sigma
+    lines = [
         "## 2. Sigma",
         "",
         f"{_spectrum_line(sig)}; {sig.n_ridge_dominated} eigenvalue(s) within {RIDGE_FACTOR:g} x eps "
         "(the ridge eps I dominates there).",
         "Eigenvalues: " + ", ".join(_f(v, 3) for v in sig.eigenvalues) + ".",
     ]
+    if d.sigma_raw is not None:
+        lines += [
+            "",
+            f"Raw MCD estimate (before the ridge or the variance floor): {_spectrum_line(d.sigma_raw)}.",
+            "Eigenvalues: " + ", ".join(_f(v, 3) for v in d.sigma_raw.eigenvalues) + ".",
+        ]
+    if d.held:
+        lines += [
+            "",
+            "The estimates of mu and Sigma held fixed during training (after that many epochs; final = after "
+            "training, the one the score uses), raw MCD covariance before the floor; an effective rank that "
+            "falls from one estimate to the next is Sigma losing rank:",
+            "",
+            "| after epoch | effective rank | smallest / largest eigenvalue | raised by the floor | trace |",
+            "|---|---:|---:|---:|---:|",
+            *[
+                f"| {'final' if h.epoch < 0 else h.epoch} | {_f(h.effective_rank, 3)} "
+                f"| {_f(h.smallest_over_largest, 3)} | {h.floored} | {_f(h.trace, 3)} |"
+                for h in d.held
+            ],
+        ]
+    return lines
 
 
 def _embedding_lines(e: EmbeddingSummary) -> list[str]:
@@ -627,11 +713,24 @@ def _embedding_lines(e: EmbeddingSummary) -> list[str]:
 
 def _decomposition_lines(d: Diagnosis) -> list[str]:
     """Section 4: the D and Rec terms of the score per group, and the score with other weights w."""
+    by_group = {t.group: t for t in d.terms}
+    alone = ", ".join(
+        f"{label} {_f(by_group[g].auc_d, 3)}"
+        for g, label in (("collision", "collisions"), ("mechanical", "faults"), ("all anomalies", "all"))
+        if g in by_group
+    )
+    normal = by_group.get("normal")
+    rec_is = {
+        "frame density": "the frame-density term",
+        "reconstruction": "the decoders' reconstruction error",
+    }
     lines = [
         "## 4. Score decomposition",
         "",
-        f"score = D + {_f(d.rec_weight)} Rec (w mean_D / mean_Rec). AUCs are each group against the "
-        "normal test windows.",
+        f"score = D + {_f(d.rec_weight)} Rec (w mean_D / mean_Rec), Rec "
+        f"{rec_is.get(d.second_term, 'absent')}. AUCs are each group against the normal test windows.",
+        f"D alone: AUC {alone}; D's share of the mean score on normal test windows: "
+        f"{_pct(normal.share_d) if normal is not None else '—'}.",
         "",
         "| group | n | mean D | mean w·Rec | D share | Rec share | AUC D | AUC Rec | AUC score |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|",

@@ -10,11 +10,15 @@ from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
 from msvdd.network import FUSIONS
 
-REC_SCORES = ("mean", "fused")
-"""Allowed `rec_score` values."""
+SVDD_FITS = ("batch", "frozen")
+"""Allowed `svdd_fit` values: how mu and Sigma of the training loss are estimated."""
 RETIRED_FIELDS = ("rec_components",)
 """Fields of earlier configurations that `from_dict` drops (the residual frame mixtures' size, which only the
 retired `rec_score` values "mixture" and "context" read)."""
+LEGACY_REC_SCORES = ("mean", "fused")
+"""`rec_score` values of configurations saved before the field was retired, which `from_dict` translates:
+"mean" is the decoders' reconstruction error (now always the reconstruction term), "fused" the frame-density
+term, now `frame_density=True` (it was only in the score while `use_reconstruction` was True)."""
 DEVICES = ("cpu", "cuda", "auto")
 """Allowed `device` values ("auto" = CUDA when available, else CPU)."""
 
@@ -38,9 +42,31 @@ class MSVDDConfig:
     use_imu: bool = True
     """Use the IMU modality (False = audio-only ablation)."""
     use_reconstruction: bool = True
-    """Train and score with the reconstruction branch (False = "w/o reconstruction" ablation)."""
+    """Train the decoders and score their reconstruction error Rec (False = "w/o reconstruction" ablation:
+    no decoders, score D alone)."""
     use_mahalanobis: bool = True
     """Mahalanobis SVDD with MCD (False = Euclidean Deep SVDD with the same network)."""
+    svdd_fit: str = "batch"
+    """How the training loss gets mu and Sigma. "batch" (the paper): MCD on each batch, differentiable in z,
+    with the covariance regulariser; over the MCD support the batch's mean squared distance is
+    sum lambda / (lambda + eps) whatever z is (`msvdd.losses`), so it can only learn to shrink eigenvalues.
+    "frozen": like Deep SVDD's fixed centre, mu and Sigma by MCD over the embeddings of the whole training
+    split after `stats_warmup` epochs and every `stats_every` epochs after that, held fixed in between,
+    Sigma's eigenvalues floored at `variance_floor` times their mean; the loss is the mean squared Mahalanobis
+    distance under them plus the reconstruction loss (no radius, no regulariser), and the last epoch is kept
+    (validation losses under different statistics do not compare)."""
+    stats_warmup: int = 1
+    """`svdd_fit="frozen"`: epochs trained on the reconstruction loss alone before the first estimate (Deep
+    SVDD's autoencoder pre-training; 0, or without reconstruction: the first estimate is of the initial
+    network)."""
+    stats_every: int = 5
+    """`svdd_fit="frozen"`: epochs between two estimates of mu and Sigma."""
+    variance_floor: float = 0.01
+    """`svdd_fit="frozen"`: Sigma's eigenvalues are raised to at least this fraction of their mean (a bound
+    on the condition number that does not depend on the embeddings' scale; eps I is added too)."""
+    bias_free: bool = False
+    """Biases of the encoders and the fusion (everything z depends on) fixed at 0, as Deep SVDD requires: no
+    constant z but 0 is reachable by the network."""
     alpha: tuple[float, float, float] = (1.0, 1.0, 0.001)
     """Loss weights of the SVDD, reconstruction and covariance-regulariser terms."""
     eps: float = 1e-3
@@ -49,11 +75,12 @@ class MSVDDConfig:
     """Soft-boundary nu: loss R^2 + 1/(nu N) sum max(0, D^2 - R^2); 1 = the paper's mean."""
     w: float = 0.01
     """Weight of the scaled reconstruction loss in the anomaly score."""
-    rec_score: str = "mean"
-    """Reconstruction term of the score: "mean" (paper: mean Huber error over the window, summed over the
-    modalities) or "fused" (per modality the largest distance of an input frame under a mixture density
-    network of the training input frames given its neighbours and, for the IMU of an audio-IMU model, the
-    audio frames around it, over its training mean, summed; `msvdd.context_net`)."""
+    frame_density: bool = False
+    """Score a frame-density term in place of Rec: per modality the largest distance of a normalised input
+    frame under a mixture density network of the training input frames given its neighbours and, for the IMU
+    of an audio-IMU model, the audio frames around it, over its training mean, summed (`msvdd.context_net`).
+    Not the paper's model and not read from the network: the `frame-density-msvdd` method. The decoders
+    still train when `use_reconstruction` is True, but do not score."""
     batch_size: int = 64
     """Training batch size (and MCD batch)."""
     lr: float = 1e-4
@@ -97,7 +124,10 @@ class MSVDDConfig:
         _check(self.eps > 0, "eps", self.eps, "> 0")
         _check(0 < self.nu <= 1, "nu", self.nu, "0 < nu <= 1")
         _check(self.w >= 0, "w", self.w, ">= 0")
-        _check(self.rec_score in REC_SCORES, "rec_score", self.rec_score, " | ".join(REC_SCORES))
+        _check(self.svdd_fit in SVDD_FITS, "svdd_fit", self.svdd_fit, " | ".join(SVDD_FITS))
+        _check(self.stats_warmup >= 0, "stats_warmup", self.stats_warmup, ">= 0")
+        _check(self.stats_every >= 1, "stats_every", self.stats_every, ">= 1")
+        _check(0 <= self.variance_floor <= 1, "variance_floor", self.variance_floor, "0 <= floor <= 1")
         _check(self.batch_size >= 2, "batch_size", self.batch_size, ">= 2")
         _check(self.lr > 0, "lr", self.lr, "> 0")
         _check(self.epochs >= 1, "epochs", self.epochs, ">= 1")
@@ -113,7 +143,7 @@ class MSVDDConfig:
         )
         _check(self.smooth_polyorder >= 0, "smooth_polyorder", self.smooth_polyorder, ">= 0")
         _check(self.device in DEVICES, "device", self.device, " | ".join(DEVICES))
-        if self.use_mahalanobis:
+        if self.use_mahalanobis and self.svdd_fit == "batch":
             try:
                 support_size(self.batch_size, self.s, self.mcd_support_fraction)
             except MCDError as err:
@@ -146,9 +176,15 @@ class MSVDDConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Self:
-        """Inverse of `to_dict`; unknown keys are an error naming them (`RETIRED_FIELDS` are dropped)."""
+        """Inverse of `to_dict`; unknown keys are an error naming them (`RETIRED_FIELDS` are dropped, a
+        `rec_score` of `LEGACY_REC_SCORES` translated, any other refused)."""
         names = {f.name for f in dataclasses.fields(cls)}
         values = {k: v for k, v in data.items() if k not in RETIRED_FIELDS}
+        if "rec_score" in values:
+            rec_score = values.pop("rec_score")
+            _check(rec_score in LEGACY_REC_SCORES, "rec_score", rec_score, " | ".join(LEGACY_REC_SCORES))
+            if rec_score == "fused":
+                values["frame_density"] = bool(values.get("use_reconstruction", True))
         unknown = sorted(set(values) - names)
         if unknown:
             raise ValueError(f"unknown MSVDDConfig fields: {', '.join(unknown)}")

@@ -13,6 +13,13 @@ gradient carries no information about normality except one: sinking eigenvalues 
 this way the embeddings collapse onto a few directions (`msvdd-bench diagnose` shows the spectrum of Sigma of
 a trained model), and the covariance regulariser at alpha3 = 0.001 is too weak to stop it.
 `tests/msvdd/test_losses.py` checks the identity.
+
+- `floored_covariance`: the covariance `svdd_fit="frozen"` holds fixed between its estimates (Deep SVDD's
+  fixed centre, extended to the ellipsoid): eigenvalues raised to a fraction of their mean, then eps I.
+  Estimated over the whole training split with no gradient, it cannot be moved by the loss it enters; with a
+  relative floor and eps, shrinking the embeddings' scale changes nothing after the next estimate.
+- `effective_rank`: exp(entropy) of a spectrum, the figure `msvdd-bench diagnose` and the training history
+  report to show whether Sigma keeps its rank.
 """
 
 from __future__ import annotations
@@ -56,6 +63,31 @@ def covariance_regulariser(sigma: torch.Tensor, eps: float) -> torch.Tensor:
     """sum_i 1/(Sigma_ii + eps) + lambda_max / (lambda_min + eps) of a symmetric (s, s) Sigma."""
     eig = torch.linalg.eigvalsh(sigma)
     return (1.0 / (torch.diagonal(sigma) + eps)).sum() + eig[-1] / (eig[0] + eps)
+
+
+def floored_covariance(cov: torch.Tensor, floor: float, eps: float) -> torch.Tensor:
+    """Symmetric (s, s) `cov` with its eigenvalues raised to at least `floor` times their mean, plus eps I.
+
+    The floor bounds the condition number of the result by about 1 / floor whatever the embeddings' scale;
+    a ridge eps I alone is an absolute floor, which shrinking embeddings make dominant.
+    """
+    sym = 0.5 * (cov + cov.T)
+    lam, vec = torch.linalg.eigh(sym)
+    lam = lam.clamp_min(0.0)
+    lam = torch.maximum(lam, floor * lam.mean())
+    eye = torch.eye(cov.shape[0], dtype=cov.dtype, device=cov.device)
+    return (vec * lam) @ vec.T + eps * eye
+
+
+def effective_rank(eigenvalues: torch.Tensor) -> float:
+    """exp(Shannon entropy of p = lambda / sum lambda) of a spectrum (negative values clipped to 0): between 1
+    (one direction) and its length (all equal); nan if every eigenvalue is 0."""
+    lam = eigenvalues.detach().to(torch.float64).clamp_min(0.0)
+    total = float(lam.sum())
+    if total <= 0:
+        return float("nan")
+    p = lam[lam > 0] / total
+    return float(torch.exp(-(p * torch.log(p)).sum()))
 
 
 def batch_statistics(

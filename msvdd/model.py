@@ -1,15 +1,32 @@
 """`MSVDD`: the paper's detector (Algorithm 1) behind the shared `Detector` contract.
 
-fit: z-score statistics from the training windows; train the network with
-alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch of `batch_size`; then mu
-and Sigma by MCD over the embeddings of the whole training split (with `rec_score="fused"` also the mixture
-density networks of the training windows' input frames, `msvdd.context_net`, their epochs chosen on the
-validation windows), the training means of D and Rec, and
-the score delta = D + w (mean_D / mean_Rec) Rec, Rec the reconstruction term `rec_score` names; the
-threshold follows the rule of `msvdd.contract.Detector` (the `quantile` of the scores of held-out nominal
-windows). No test label is ever seen. With
-`use_mahalanobis=False` the same network is trained as a Euclidean soft-boundary Deep SVDD around a fixed
-centre c (the mean initial embedding, Ruff et al. 2018) and scored by ||z - c||.
+fit: z-score statistics from the training windows; train the network; then mu and Sigma by MCD over the
+embeddings of the whole training split, the training means of D and Rec, and the score
+delta = D + w (mean_D / mean_Rec) Rec, D the latent Mahalanobis distance and Rec the mean Huber error of the
+network's own decoders; the threshold follows the rule of `msvdd.contract.Detector` (the `quantile` of the
+scores of held-out nominal windows). No test label is ever seen.
+
+Training, by `svdd_fit`:
+
+- "batch" (the paper): alpha1 * L_MSVDD + alpha2 * L_Rec + alpha3 * L_Reg, mu and Sigma by MCD on each batch
+  of `batch_size` (degenerate by construction: `msvdd.losses`); the epoch of the best validation loss is kept.
+- "frozen": Deep SVDD's fixed centre extended to the ellipsoid. `stats_warmup` epochs of alpha2 * L_Rec alone,
+  then mu and Sigma by MCD over the embeddings of the whole training split (Sigma's spectrum floored,
+  `msvdd.losses.floored_covariance`), re-estimated every `stats_every` epochs and held fixed in between; the
+  loss is alpha1 * mean D^2 + alpha2 * L_Rec under the held statistics, and the last epoch is kept. The
+  estimates are scale-equivariant (MCD on z over its RMS spread, a relative floor and ridge), so D after an
+  estimate does not depend on the embeddings' scale. Each estimate's spectrum is kept in the training history
+  (`stats_*` figures), which `msvdd-bench diagnose` reports.
+
+With `use_mahalanobis=False` the same network is trained as a Euclidean Deep SVDD around a fixed centre c
+(the mean embedding, Ruff et al. 2018: of the initial network in "batch" mode, soft boundary; after the
+warm-up in "frozen" mode, fixed from then on, loss mean ||z - c||^2) and scored by ||z - c||. With
+`bias_free` the encoders' and the fusion's biases stay 0, so that the network cannot map every window to one
+constant z other than 0.
+
+`frame_density=True` replaces Rec in the score by a frame-density term of the normalised input frames
+(`msvdd.context_net`), which reads no part of the network: that is the `frame-density-msvdd` method, not the
+paper's model.
 """
 
 from __future__ import annotations
@@ -42,6 +59,8 @@ from msvdd.frontend import InputNormalizer
 from msvdd.losses import (
     batch_statistics,
     covariance_regulariser,
+    effective_rank,
+    floored_covariance,
     huber_per_window,
     reconstruction_loss,
     svdd_loss,
@@ -51,11 +70,11 @@ from msvdd.network import AUDIO_STRIDES, IMU_FRAME, FusionNet, NetOutput
 from msvdd.residual import cut_frames
 from msvdd.training import TrainResult, batched_loss, resolve_device, split_train_val, train_network
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 """Version of the file written by `MSVDD.save` (2: front-end choice and per-channel statistics, training
-history; 3: the frame densities of the reconstruction term); `load` also reads versions 1 (the paper's
-waveform and z-velocity) and 2, refuses any other, and refuses a model of a retired `rec_score` by its
-config."""
+history; 3: the frame densities of the reconstruction term; 4: the frame-density term under its own name,
+`frame_density`, and Sigma's raw estimate); `load` also reads versions 1 (the paper's waveform and
+z-velocity), 2 and 3, refuses any other, and refuses a model of a retired `rec_score` by its config."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
@@ -73,7 +92,7 @@ class LossTerms:
     rec: torch.Tensor
     """Mean reconstruction loss (0 without the reconstruction branch)."""
     reg: torch.Tensor
-    """Covariance regulariser (0 for Euclidean SVDD)."""
+    """Covariance regulariser (0 for Euclidean SVDD and for `svdd_fit="frozen"`)."""
 
 
 class _Module(nn.Module):
@@ -85,6 +104,36 @@ class _Module(nn.Module):
         self.center: torch.Tensor
         self.radius = nn.Parameter(torch.tensor(float(np.sqrt(config.s))))
         self.register_buffer("center", torch.zeros(config.s))
+        if config.bias_free:
+            for param in z_biases(self.net):
+                param.requires_grad_(False)
+                with torch.no_grad():
+                    param.zero_()
+
+
+def z_biases(net: FusionNet) -> list[torch.Tensor]:
+    """The biases z depends on (the encoders' and the fusion's) of a network, for checks."""
+    return [
+        param
+        for part in (net.audio_encoder, net.imu_encoder, net.fusion)
+        if part is not None
+        for name, param in part.named_parameters()
+        if name.split(".")[-1].startswith("bias")
+    ]
+
+
+@dataclass(frozen=True)
+class StatsFit:
+    """One estimate of mu and Sigma of `svdd_fit="frozen"` (or the final one)."""
+
+    epoch: int
+    """Epochs trained when it was made (0: the initial network)."""
+    eigenvalues: list[float]
+    """Eigenvalues of the raw MCD covariance (before the floor), largest first."""
+    effective_rank: float
+    """exp(entropy) of `eigenvalues`: s when every direction carries the same variance, 1 for one."""
+    floored: int
+    """Eigenvalues the variance floor raised."""
 
 
 class MSVDD(Detector):
@@ -103,11 +152,31 @@ class MSVDD(Detector):
         self.mean_d_ = 1.0
         self.mean_rec_ = 1.0
         self.rec_scale_ = np.ones(2)
-        self.rec_density_: list[ContextNet] | None = None
+        self.frame_density_: list[ContextNet] | None = None
+        self.sigma_raw_: torch.Tensor | None = None
+        self.stats_fits_: list[StatsFit] = []
+        self.loaded_format_: int | None = None
         self.threshold_ = float("nan")
         self.history_: TrainResult | None = None
         self._mcd_calls = 0
         self._terms: list[tuple[float, float, float]] = []
+        self._held: tuple[torch.Tensor, torch.Tensor] | None = None
+        self._epochs_done = 0
+        self._train_t: tuple[torch.Tensor, torch.Tensor] | None = None
+
+    @property
+    def has_term(self) -> bool:
+        """Whether the score has a second term (Rec, or the frame-density term) beside D."""
+        return self.config.frame_density or self.config.use_reconstruction
+
+    @property
+    def frozen(self) -> bool:
+        """Whether training holds mu and Sigma (or c) fixed between estimates (`svdd_fit="frozen"`)."""
+        return self.config.svdd_fit == "frozen"
+
+    def _warmup(self) -> int:
+        """Epochs before the first estimate: `stats_warmup`, or 0 without a reconstruction loss to train."""
+        return self.config.stats_warmup if self.config.use_reconstruction else 0
 
     # ---------------------------------------------------------------- training
 
@@ -122,7 +191,8 @@ class MSVDD(Detector):
         """
         cfg = self.config
         n_val = len(val) if val is not None else round(len(train) * cfg.val_fraction)
-        if cfg.use_mahalanobis and n_val > 0 and not _mcd_possible(min(n_val, cfg.batch_size), cfg):
+        batch_mcd = cfg.use_mahalanobis and not self.frozen
+        if batch_mcd and n_val > 0 and not _mcd_possible(min(n_val, cfg.batch_size), cfg):
             source = "the val set" if val is not None else f"a {cfg.val_fraction:.0%} validation split"
             warnings.warn(
                 f"{source} has {n_val} windows, too few for the validation MCD in s={cfg.s} dimensions; "
@@ -140,19 +210,29 @@ class MSVDD(Detector):
             fit_part, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
         )
         val_t = None if val is None or len(val) == 0 else self._tensors(val)
-        if not cfg.use_mahalanobis:
-            self._init_center(train_t)
         self._mcd_calls = 0
         self._terms = []
-        self.history_ = train_network(
-            self.module,
-            self.batch_loss,
-            train_t,
-            val_t,
-            cfg,
-            val_loss_fn=self._val_loss,
-            epoch_probe=self._epoch_figures,
-        )
+        self._held = None
+        self._epochs_done = 0
+        self.stats_fits_ = []
+        self._train_t = train_t
+        if not cfg.use_mahalanobis and not self.frozen:
+            self._init_center(train_t)
+        if self.frozen and self._warmup() == 0:
+            self._fit_held_statistics()
+        try:
+            self.history_ = train_network(
+                self.module,
+                self.batch_loss,
+                train_t,
+                None if self.frozen else val_t,
+                cfg,
+                val_loss_fn=self._val_loss,
+                epoch_probe=self._epoch_figures,
+            )
+        finally:
+            self._train_t = None
+            self._held = None
         self._finalise(train_t, val_t)
 
     def _check_sizes(self, n_train: int, n_val: int) -> None:
@@ -165,7 +245,7 @@ class MSVDD(Detector):
         if cfg.use_mahalanobis:
             try:
                 support_size(n_train, cfg.s, cfg.mcd_support_fraction)
-                if n_val:
+                if n_val and not self.frozen:
                     support_size(min(n_val, cfg.batch_size), cfg.s, cfg.mcd_support_fraction)
             except MCDError as err:
                 raise WindowError(f"too few windows for the MCD in s={cfg.s} dimensions: {err}") from err
@@ -177,16 +257,60 @@ class MSVDD(Detector):
 
     def _init_center(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
         """Euclidean mode: c = mean initial embedding, entries near 0 pushed to +-eps (Ruff et al.)."""
-        z = self._embed_tensors(train_t).mean(dim=0)
+        self._set_center(self._embed_tensors(train_t).mean(dim=0))
+
+    def _set_center(self, z: torch.Tensor) -> None:
+        """c = z (s,), entries near 0 pushed to +-eps (Ruff et al.)."""
         eps = self.config.eps
         z = torch.where(z.abs() < eps, torch.where(z < 0, -eps, eps), z)
         self.module.center.copy_(z.to(self.module.center.dtype))
+
+    def _fit_held_statistics(self) -> None:
+        """`svdd_fit="frozen"`: estimate the statistics the loss holds fixed until the next estimate, from the
+        embeddings of the whole training split (Mahalanobis: mu and floored Sigma by MCD; Euclidean: the
+        centre c, once, at the first estimate), and record the estimate's spectrum."""
+        if self._train_t is None:
+            raise RuntimeError("the held statistics are estimated during fit only")
+        cfg = self.config
+        z = self._embed_tensors(self._train_t).to(torch.float64)
+        if not cfg.use_mahalanobis:
+            if self._held is None:
+                self._set_center(z.mean(dim=0))
+                self._held = (self.module.center.detach().clone(), torch.eye(cfg.s, device=self.device))
+            return
+        mu, raw, sigma = self._robust_statistics(z, cfg.seed * 1_000_003 + 7919 * (self._epochs_done + 1))
+        self._held = (mu.to(torch.float32), sigma.to(torch.float32))
+        self.stats_fits_.append(_stats_fit(self._epochs_done, raw, cfg.variance_floor))
+
+    def _robust_statistics(
+        self, z: torch.Tensor, seed: int
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(mu, raw MCD covariance, floored Sigma) of embeddings z (n, s) for `svdd_fit="frozen"`: MCD on z
+        over its RMS spread (so that the ridge of the MCD's selection is relative), the floor and eps relative
+        to the mean eigenvalue; scaling z by a scales mu by a and both covariances by a^2.
+
+        Raises:
+            ValueError: the embeddings do not spread (every window maps to one z).
+        """
+        cfg = self.config
+        spread = float(torch.sqrt(z.var(dim=0).mean()))
+        if not math.isfinite(spread) or spread <= 0:
+            raise ValueError("the embeddings z do not spread (every training window maps to one z)")
+        mcd = min_cov_det(
+            z / spread, cfg.mcd_support_fraction, random_state=seed, n_trials=cfg.mcd_trials, ridge=cfg.eps
+        )
+        raw = mcd.covariance * spread**2
+        mean_eig = float(torch.diagonal(raw).mean())
+        sigma = floored_covariance(raw, cfg.variance_floor, cfg.eps * mean_eig)
+        return mcd.location * spread, raw, sigma
 
     def loss_terms(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor, seed: int) -> LossTerms:
         """The loss of one batch given the network output (public for tests)."""
         cfg = self.config
         z = out.z
         zero = torch.zeros((), device=z.device)
+        if self.frozen:
+            return self._frozen_loss_terms(out, audio, imu)
         if cfg.use_mahalanobis:
             mu, sigma, _ = batch_statistics(z, cfg.eps, cfg.mcd_support_fraction, seed, cfg.mcd_trials)
             d2 = mahalanobis_sq(z, mu, sigma)
@@ -195,13 +319,32 @@ class MSVDD(Detector):
             d2 = ((z - self.module.center) ** 2).sum(dim=1)
             reg = zero
         svdd = svdd_loss(d2, self.module.radius, cfg.nu)
-        rec = zero
-        if cfg.use_reconstruction:
-            rec = reconstruction_loss(
-                audio if cfg.use_audio else None, out.audio_rec, imu if cfg.use_imu else None, out.imu_rec
-            ).mean()
+        rec = self._reconstruction(out, audio, imu) if cfg.use_reconstruction else zero
         a1, a2, a3 = cfg.alpha
         return LossTerms(total=a1 * svdd + a2 * rec + a3 * reg, svdd=svdd, rec=rec, reg=reg)
+
+    def _reconstruction(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> torch.Tensor:
+        cfg = self.config
+        return reconstruction_loss(
+            audio if cfg.use_audio else None, out.audio_rec, imu if cfg.use_imu else None, out.imu_rec
+        ).mean()
+
+    def _frozen_loss_terms(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> LossTerms:
+        """`svdd_fit="frozen"`: alpha1 * mean D^2 under the held statistics + alpha2 * L_Rec; before the
+        first estimate (the warm-up) alpha2 * L_Rec alone."""
+        cfg = self.config
+        zero = torch.zeros((), device=out.z.device)
+        rec = self._reconstruction(out, audio, imu) if cfg.use_reconstruction else zero
+        a1, a2, _ = cfg.alpha
+        if self._held is None:
+            return LossTerms(total=a2 * rec, svdd=zero, rec=rec, reg=zero)
+        mu, sigma = self._held
+        if cfg.use_mahalanobis:
+            d2 = mahalanobis_sq(out.z, mu.to(out.z.dtype), sigma.to(out.z.dtype))
+        else:
+            d2 = ((out.z - mu.to(out.z.dtype)) ** 2).sum(dim=1)
+        svdd = d2.mean()
+        return LossTerms(total=a1 * svdd + a2 * rec, svdd=svdd, rec=rec, reg=zero)
 
     def batch_loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
         """Training loss of one (audio, imu) batch (the `loss_fn` given to `train_network`)."""
@@ -213,10 +356,28 @@ class MSVDD(Detector):
         return terms.total
 
     def _epoch_figures(self) -> dict[str, float]:
-        """The radius R after an epoch and the epoch's mean SVDD, reconstruction and regulariser terms."""
+        """The radius R after an epoch and the epoch's mean SVDD, reconstruction and regulariser terms; with
+        `svdd_fit="frozen"` the estimate of the held statistics when one is due after this epoch (`stats_fit`
+        1), and the held Sigma's raw spectrum: its effective rank, its eigenvalues the floor raised, its trace
+        (nan before the first estimate, and for the Euclidean model)."""
         means = np.mean(np.asarray(self._terms, dtype=np.float64), axis=0) if self._terms else np.zeros(3)
         self._terms = []
-        return {"radius": self.radius_, "svdd": means[0], "rec": means[1], "reg": means[2]}
+        figures = {"radius": self.radius_, "svdd": means[0], "rec": means[1], "reg": means[2]}
+        if not self.frozen:
+            return figures
+        self._epochs_done += 1
+        done, warmup, every = self._epochs_done, self._warmup(), self.config.stats_every
+        due = done >= warmup and (done - warmup) % every == 0 and done < self.config.epochs
+        if due:
+            self._fit_held_statistics()
+        last = self.stats_fits_[-1] if self.stats_fits_ else None
+        figures.update(
+            stats_fit=float(due),
+            stats_effective_rank=float("nan") if last is None else last.effective_rank,
+            stats_floored=float("nan") if last is None else float(last.floored),
+            stats_trace=float("nan") if last is None else float(sum(last.eigenvalues)),
+        )
+        return figures
 
     def _val_loss(self, module: nn.Module, tensors: tuple[torch.Tensor, ...]) -> float:
         seed = self.config.seed
@@ -232,29 +393,33 @@ class MSVDD(Detector):
         train_t: tuple[torch.Tensor, torch.Tensor],
         val_t: tuple[torch.Tensor, torch.Tensor] | None = None,
     ) -> None:
-        """mu, Sigma over the whole training split; the frame densities (`"fused"`: their epochs chosen on
-        `val_t`); the training means of D and Rec."""
+        """mu, Sigma over the whole training split; the frame densities (`frame_density`: their epochs chosen
+        on `val_t`); the training means of D and of the second term."""
         cfg = self.config
         z = self._embed_tensors(train_t).to(torch.float64)
-        if cfg.use_mahalanobis:
+        if cfg.use_mahalanobis and self.frozen:
+            self.mu_, self.sigma_raw_, self.sigma_ = self._robust_statistics(z, cfg.seed)
+            self.stats_fits_.append(_stats_fit(-1, self.sigma_raw_, cfg.variance_floor))
+        elif cfg.use_mahalanobis:
             mcd = min_cov_det(
                 z, cfg.mcd_support_fraction, random_state=cfg.seed, n_trials=cfg.mcd_trials, ridge=cfg.eps
             )
             self.mu_ = mcd.location
+            self.sigma_raw_ = mcd.covariance
             self.sigma_ = mcd.covariance + cfg.eps * torch.eye(cfg.s, dtype=torch.float64, device=z.device)
         else:
             self.mu_ = self.module.center.detach().to(torch.float64)
             self.sigma_ = torch.eye(cfg.s, dtype=torch.float64, device=z.device)
-        if cfg.rec_score == "fused" and cfg.use_reconstruction:
-            self.rec_density_ = self._fit_input_densities(train_t, val_t)
+        if cfg.frame_density:
+            self.frame_density_ = self._fit_input_densities(train_t, val_t)
         d, parts = self._distance_and_parts(train_t)
-        if cfg.rec_score != "mean" and parts.shape[1]:
+        if cfg.frame_density and parts.shape[1]:
             self.rec_scale_ = np.where(parts.mean(axis=0) > 0, parts.mean(axis=0), 1.0)
         else:
             self.rec_scale_ = np.ones(parts.shape[1])
         rec = self._rec(parts)
         self.mean_d_ = float(d.mean())
-        self.mean_rec_ = float(rec.mean()) if cfg.use_reconstruction else 1.0
+        self.mean_rec_ = float(rec.mean()) if self.has_term else 1.0
         if not np.isfinite(self.mean_d_) or self.mean_d_ <= 0 or not np.isfinite(self.mean_rec_):
             raise ValueError(
                 f"training produced degenerate scores (mean D {self.mean_d_}, mean Rec {self.mean_rec_})"
@@ -281,17 +446,24 @@ class MSVDD(Detector):
             pairs.append((imu, out.imu_rec))
         return pairs
 
+    def term_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+        """(N,) the score's second term per modality: the frame-density term's (`frame_density`, read from
+        the inputs), else the decoders' mean Huber error of the window (`rec_parts`)."""
+        if self.config.frame_density:
+            return self.frame_parts(audio, imu)
+        return self.rec_parts(out, audio, imu)
+
     def rec_parts(self, out: NetOutput, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
-        """(N,) reconstruction error of each reconstructed modality, as `rec_score` measures it: the mean
-        Huber error of the window ("mean"), or the largest input-frame distance under its density network
-        ("fused")."""
-        if self.config.rec_score == "fused":
-            frames = self.input_frames(audio, imu)
-            nets = self.rec_density_ or []
-            if len(nets) != len(frames):
-                raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
-            return [g.peak_distance(f, _cross(g, frames)) for g, f in zip(nets, frames, strict=True)]
+        """(N,) reconstruction error of each reconstructed modality: the mean Huber error of the window."""
         return [huber_per_window(x, x_hat) for x, x_hat in self._rec_pairs(out, audio, imu)]
+
+    def frame_parts(self, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
+        """(N,) the largest input-frame distance of each used modality under its density network."""
+        frames = self.input_frames(audio, imu)
+        nets = self.frame_density_ or []
+        if len(nets) != len(frames):
+            raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
+        return [g.peak_distance(f, _cross(g, frames)) for g, f in zip(nets, frames, strict=True)]
 
     def input_frames(self, audio: torch.Tensor, imu: torch.Tensor) -> list[torch.Tensor]:
         """(N, T, p) frames of each used modality's normalised input, audio first, one per token (a log-mel
@@ -310,7 +482,7 @@ class MSVDD(Detector):
     def _fit_input_densities(
         self, train_t: tuple[torch.Tensor, torch.Tensor], val_t: tuple[torch.Tensor, torch.Tensor] | None
     ) -> list[ContextNet]:
-        """`rec_score="fused"`: a `ContextNet` of each used modality's input frames given its neighbours; the
+        """`frame_density`: a `ContextNet` of each used modality's input frames given its neighbours; the
         IMU's also given the audio frames around it when both modalities are used (`msvdd.context_net`)."""
         device = self.device
         train = self.input_frames(train_t[0].to(device), train_t[1].to(device))
@@ -328,7 +500,7 @@ class MSVDD(Detector):
     def _distance_and_parts(
         self, tensors: tuple[torch.Tensor, torch.Tensor]
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(D (N,), reconstruction error per modality (N, M); M = 0 without reconstruction)."""
+        """(D (N,), the second term per modality (N, M); M = 0 without one)."""
         if self.mu_ is None or self.sigma_ is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
         d_all, parts_all = [], []
@@ -337,7 +509,7 @@ class MSVDD(Detector):
                 a, i = a.to(self.device), i.to(self.device)
                 out = self.module.net(a, i)
                 d_all.append(mahalanobis(out.z.to(torch.float64), self.mu_, self.sigma_).cpu())
-                parts = self.rec_parts(out, a, i) if self.config.use_reconstruction else []
+                parts = self.term_parts(out, a, i) if self.has_term else []
                 parts_all.append(
                     torch.stack(parts, dim=1).to(torch.float64).cpu()
                     if parts
@@ -346,7 +518,7 @@ class MSVDD(Detector):
         return torch.cat(d_all).numpy(), torch.cat(parts_all).numpy()
 
     def _rec(self, parts: np.ndarray) -> np.ndarray:
-        """The reconstruction term: the modalities' errors (in units of `rec_scale_`) summed; 0 without."""
+        """The second term: the modalities' parts (in units of `rec_scale_`) summed; 0 without."""
         return (parts / self.rec_scale_[: parts.shape[1]]).sum(axis=1)
 
     def _components_tensors(
@@ -356,12 +528,13 @@ class MSVDD(Detector):
         return d, self._rec(parts)
 
     def _delta(self, d: np.ndarray, rec: np.ndarray) -> np.ndarray:
-        if not self.config.use_reconstruction:
+        if not self.has_term:
             return d.astype(np.float64)
         return (d + self.config.w * (self.mean_d_ / self.mean_rec_) * rec).astype(np.float64)
 
     def score_components(self, batch: Windows) -> tuple[np.ndarray, np.ndarray]:
-        """(D (N,) Mahalanobis (or Euclidean) distance, Rec (N,) reconstruction loss; zeros without it)."""
+        """(D (N,) Mahalanobis (or Euclidean) distance, the second term (N,): the decoders' reconstruction
+        error Rec, or the frame-density term with `frame_density`; zeros without one)."""
         check_windows(batch, "batch")
         return self._components_tensors(self._tensors(batch))
 
@@ -391,7 +564,11 @@ class MSVDD(Detector):
             "mean_d": self.mean_d_,
             "mean_rec": self.mean_rec_,
             "rec_scale": torch.from_numpy(np.asarray(self.rec_scale_, dtype=np.float64)),
-            "rec_gauss": None if self.rec_density_ is None else [g.state() for g in self.rec_density_],
+            "frame_density": (
+                None if self.frame_density_ is None else [g.state() for g in self.frame_density_]
+            ),
+            "sigma_raw": None if self.sigma_raw_ is None else self.sigma_raw_.cpu(),
+            "stats_fits": [dataclasses.asdict(f) for f in self.stats_fits_],
             "threshold": self.threshold_,
             "threshold_source": self.threshold_source_,
             "history": None if self.history_ is None else self.history_.to_dict(),
@@ -420,7 +597,7 @@ class MSVDD(Detector):
         if not isinstance(payload, dict) or payload.get("format") != _FORMAT_NAME:
             raise ModelFormatError(f"{source} is not an M-SVDD model file")
         version = payload.get("format_version")
-        if version not in (1, 2, FORMAT_VERSION):
+        if version not in (1, 2, 3, FORMAT_VERSION):
             raise ModelFormatError(
                 f"{source} has model format version {version}; this code reads versions 1 to {FORMAT_VERSION}"
             )
@@ -445,8 +622,14 @@ class MSVDD(Detector):
         model.mean_d_ = float(payload["mean_d"])
         model.mean_rec_ = float(payload["mean_rec"])
         model.rec_scale_ = payload["rec_scale"].numpy() if "rec_scale" in payload else np.ones(2)
-        if model.config.rec_score == "fused" and model.config.use_reconstruction:
-            model.rec_density_ = [ContextNet.from_state(g, model.device) for g in payload["rec_gauss"]]
+        if model.config.frame_density:
+            key = "frame_density" if version >= 4 else "rec_gauss"
+            model.frame_density_ = [ContextNet.from_state(g, model.device) for g in payload[key]]
+        if version >= 4:
+            raw = payload["sigma_raw"]
+            model.sigma_raw_ = None if raw is None else raw.to(model.device)
+            model.stats_fits_ = [StatsFit(**f) for f in payload["stats_fits"]]
+        model.loaded_format_ = int(version)
         model._set_threshold(float(payload["threshold"]), str(payload.get("threshold_source", "train")))
         history = payload.get("history")
         model.history_ = None if history is None else TrainResult.from_dict(history)
@@ -458,8 +641,19 @@ class MSVDD(Detector):
         return float(self.module.radius.detach())
 
 
+def _stats_fit(epoch: int, raw: torch.Tensor, floor: float) -> StatsFit:
+    """The record of one estimate: the raw covariance's spectrum and how many eigenvalues the floor raised."""
+    lam = torch.linalg.eigvalsh(0.5 * (raw + raw.T).to(torch.float64)).flip(0).clamp_min(0.0)
+    return StatsFit(
+        epoch=epoch,
+        eigenvalues=[float(v) for v in lam],
+        effective_rank=effective_rank(lam),
+        floored=int((lam < floor * lam.mean()).sum()),
+    )
+
+
 def _cross(density: ContextNet, frames: list[torch.Tensor]) -> torch.Tensor | None:
-    """The cross-modal frames a `ContextNet` of `rec_score="fused"` reads: the audio's (the first modality)
+    """The cross-modal frames a `ContextNet` of `frame_density` reads: the audio's (the first modality)
     when it has a cross-modal context, else None."""
     return frames[0] if density.cross_p > 0 else None
 

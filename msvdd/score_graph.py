@@ -14,9 +14,9 @@ and returns the anomaly score delta of `MSVDD.score`, with every step as a tenso
 4. D = ||L^-1 (z - mu)||, L the Cholesky factor of the fitted Sigma (L^-1 stored: the inverse covariance as
    Sigma^-1 = L^-T L^-1), in float64 like `msvdd.mcd.mahalanobis`; the Euclidean ablation stores mu = c and
    L^-1 = I.
-5. The reconstruction term (the mean Huber error per modality, or the largest distance of an input frame
-   under the model's `msvdd.context_net.ContextNet`, over `rec_scale_`, summed) and
-   delta = D + w (mean_D / mean_Rec) Rec, in float64.
+5. The second term (the decoders' mean Huber error per modality, Rec; or with `frame_density` the largest
+   distance of an input frame under the model's `msvdd.context_net.ContextNet`), over `rec_scale_`, summed,
+   and delta = D + w (mean_D / mean_Rec) Rec, in float64.
 
 The graph computes the same function as `MSVDD.score` (to float32 rounding), written for a fast single-thread
 ONNX Runtime session at batch 1:
@@ -338,8 +338,8 @@ class ScoreGraph(nn.Module):
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load() before exporting")
         self.logmel_input = cfg.audio_frontend == "logmel"
         self.imu_all = cfg.imu_input == "all"
-        self.use_reconstruction = cfg.use_reconstruction
-        self.rec_score = cfg.rec_score
+        self.has_term = model.has_term
+        self.frame_density = cfg.frame_density
         net = copy.deepcopy(model.module.net).cpu().eval()
         _export_lstms(net)
         self.audio_encoder = (
@@ -376,15 +376,15 @@ class ScoreGraph(nn.Module):
         self.register_buffer("mu", model.mu_.detach().cpu().to(torch.float64).reshape(1, -1))
         self.register_buffer("whiten", torch.linalg.solve_triangular(chol, eye, upper=False).T.contiguous())
         self.register_buffer("rec_scale", _f64(np.asarray(model.rec_scale_, dtype=np.float64)))
-        # `rec_score="fused"`: each modality's input-frame density network (`msvdd.context_net.ContextNet`).
+        # `frame_density`: each modality's input-frame density network (`msvdd.context_net.ContextNet`).
         self.frame_nets = nn.ModuleDict()
-        if cfg.rec_score == "fused" and cfg.use_reconstruction:
-            if model.rec_density_ is None:
+        if cfg.frame_density:
+            if model.frame_density_ is None:
                 raise NotFittedError("MSVDD is not fitted: its frame density networks are missing")
             names = [name for name, used in (("audio", cfg.use_audio), ("imu", cfg.use_imu)) if used]
-            for name, density in zip(names, model.rec_density_, strict=True):
+            for name, density in zip(names, model.frame_density_, strict=True):
                 self.frame_nets[name] = copy.deepcopy(density).cpu().eval()
-        mean_rec = model.mean_rec_ if cfg.use_reconstruction else 1.0
+        mean_rec = model.mean_rec_ if model.has_term else 1.0
         self.rec_weight = float(cfg.w * model.mean_d_ / mean_rec)
 
     def audio_input(self, audio: torch.Tensor) -> torch.Tensor:
@@ -416,9 +416,9 @@ class ScoreGraph(nn.Module):
         return err.mean(dim=tuple(range(1, err.dim())))
 
     def input_term(self, a: torch.Tensor | None, i: torch.Tensor | None) -> torch.Tensor:
-        """(N,) `rec_score="fused"`'s term: each used modality's largest input-frame distance under its
-        density network (the IMU's given the audio frames too when it reads them), over its training mean,
-        summed (as `MSVDD.rec_parts`)."""
+        """(N,) the frame-density term (`frame_density`): each used modality's largest input-frame distance
+        under its density network (the IMU's given the audio frames too when it reads them), over its training
+        mean, summed (as `MSVDD.frame_parts`)."""
         frames: dict[str, torch.Tensor] = {}
         if a is not None:
             frames["audio"] = (
@@ -452,9 +452,9 @@ class ScoreGraph(nn.Module):
         z = self.fusion(a_tokens, i_tokens).z
         y = (z.to(torch.float64) - self.mu) @ self.whiten
         score = torch.sqrt((y * y).sum(dim=1))
-        if not self.use_reconstruction:
+        if not self.has_term:
             return score
-        if self.rec_score == "fused":
+        if self.frame_density:
             return score + self.rec_weight * self.input_term(a, i)
         parts = []
         if self.audio_decoder is not None and a is not None and a_tokens is not None:

@@ -165,8 +165,9 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
         FileNotFoundError: `method.json` or the model file is missing (the message names the path).
         ModelFormatError: not a model folder, a file that is not ours, another format version, an unknown
             method, or a malformed `method.json` or model file (the method's own `load` raises it for the
-            model file, as `msvdd.model.MSVDD.load` and every baseline do); one line naming the file and
-            what was expected.
+            model file, as `msvdd.model.MSVDD.load` and every baseline do), or an M-SVDD model saved before
+            its method changed what it is; one line naming the file and what was expected. A model of a
+            renamed method loads under its new name (`benchmarks.methods.msvdd_family.check_saved`).
     """
     folder = Path(directory)
     if folder.is_file():
@@ -201,4 +202,9 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
     if not model_path.is_file():
         raise InputNotFoundError(f"{model_path} does not exist (named by {meta_path})")
     detector: Detector = method.cls.load(model_path)
-    return name, detector
+    from benchmarks.methods.msvdd_family import check_saved
+
+    try:
+        return check_saved(name, detector), detector
+    except ModelFormatError as exc:
+        raise ModelFormatError(f"{model_path}: {exc}") from exc

@@ -14,8 +14,10 @@ from msvdd.contract import Detector
 
 FAMILIES: tuple[str, ...] = ("msvdd", "deep", "shallow", "reference", "naive", "external")
 """Method families: M-SVDD and its ablations, deep baselines, shallow baselines, the reference detectors
-(densities of the inputs without the M-SVDD network), naive sanity baselines, and detectors from outside
-the project (`module:Class`, `benchmarks.methods.external`; never in the registry itself)."""
+(window statistics and densities of the inputs that a learned representation has to beat; one of them,
+`frame-density-msvdd`, adds an M-SVDD network's latent distance to its frame densities), naive sanity
+baselines, and detectors from outside the project (`module:Class`, `benchmarks.methods.external`; never in
+the registry itself)."""
 
 MODALITIES: tuple[str, ...] = ("audio+imu", "audio", "imu", "audio+imu+odometry")
 """Which sensors a method reads (odometry: the wheel encoders)."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from benchmarks import methods
 from benchmarks.methods import naive
 from benchmarks.methods.deep import DAGMM_RIDGE, _center, gmm_energy, gmm_parameters
 from benchmarks.methods.shallow import ShallowConfig, ShallowDetector
+from msvdd.config import MSVDDConfig
 from msvdd.contract import ModelFormatError
 from msvdd.synthetic import toy_windows
 
@@ -204,24 +206,74 @@ def test_registry_lists_every_family_of_the_paper() -> None:
         "gaussian-early",
         "gaussian-audio",
         "gaussian-imu",
+        "frame-density-msvdd",
+        "frame-density",
         "context-net-frames",
         "order-reference",
     }
-    assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 128  # type: ignore[attr-defined]
+    # The paper's per-batch MCD needs batches of 2 s; the held statistics do not.
+    assert methods.make("msvdd-s64", seed=0, scale="full").config.batch_size == 64  # type: ignore[attr-defined]
+    frames = methods.make("frame-density-msvdd", seed=0, scale="full").config  # type: ignore[attr-defined]
+    assert frames.svdd_fit == "batch" and frames.batch_size == 64
 
 
-def test_msvdd_scores_fused_input_frames_and_the_paper_configuration_does_not() -> None:
-    current = methods.make("msvdd", seed=0, scale="full").config  # type: ignore[attr-defined]
-    paper = methods.make("msvdd-paper", seed=0, scale="full").config  # type: ignore[attr-defined]
-    assert current.rec_score == "fused" and paper.rec_score == "mean"
-    assert current.audio_frontend == "logmel" and paper.audio_frontend == "waveform"
+def test_msvdd_is_the_paper_model_and_the_frame_density_detector_has_its_own_name() -> None:
+    def config(name: str) -> MSVDDConfig:
+        return methods.make(name, seed=0, scale="full").config  # type: ignore[attr-defined,no-any-return]
+
+    current, paper, frames = config("msvdd"), config("msvdd-paper"), config("frame-density-msvdd")
+    # msvdd: D + w Rec of its own decoders, the held-statistics fit; the frame term only under its own name.
+    assert not current.frame_density and current.use_reconstruction and current.svdd_fit == "frozen"
+    assert current.bias_free and not paper.bias_free
+    assert not paper.frame_density and paper.svdd_fit == "batch"
+    assert frames.frame_density and frames.svdd_fit == "batch" and frames.w == 100.0
+    assert current.audio_frontend == frames.audio_frontend == "logmel" and paper.audio_frontend == "waveform"
+    # Each ablation is msvdd with one switch.
+    for name, field, value in (
+        ("msvdd-no-rec", "use_reconstruction", False),
+        ("msvdd-euclidean", "use_mahalanobis", False),
+        ("msvdd-imu-only", "use_audio", False),
+        ("msvdd-audio-only", "use_imu", False),
+        ("msvdd-fusion-sum", "fusion", "sum"),
+        ("msvdd-s16", "s", 16),
+    ):
+        assert config(name) == dataclasses.replace(current, **{field: value}), name
 
 
-def test_msvdd_trains_without_a_validation_set_too_small_for_its_mcd() -> None:
+def test_msvdd_paper_trains_without_a_validation_set_too_small_for_its_mcd() -> None:
     torch.set_num_threads(1)
     windows, _ = toy_windows(48, 0, seed=10)
-    det = methods.make("msvdd", seed=0, scale="smoke")
+    det = methods.make("msvdd-paper", seed=0, scale="smoke")
     with pytest.warns(UserWarning, match="too few for the validation MCD"):
         det.fit(windows.subset(slice(0, 40)), windows.subset(slice(40, 45)))
     assert np.isfinite(det.threshold_)
     assert np.ptp(det.score(windows.subset(slice(45, 48)))) > 0
+
+
+def test_models_saved_before_the_renaming_load_under_the_new_name_or_are_refused(tmp_path: Path) -> None:
+    """A model folder of the old `msvdd` (model format 3: the frame-density term as `rec_score="fused"`) loads
+    as `frame-density-msvdd`; an old model of an entry that changed what it is is refused, saying why."""
+    torch.set_num_threads(1)
+    train, _ = toy_windows(40, 0, seed=10)
+    det = methods.make("frame-density-msvdd", seed=0, scale="smoke")
+    det.config = dataclasses.replace(det.config, epochs=1)  # type: ignore[attr-defined]
+    det.fit(train)
+    folder = methods.save_detector(det, "frame-density-msvdd", tmp_path / "old")
+    payload = torch.load(folder / "model.bin", weights_only=True)
+    new_fields = ("frame_density", "svdd_fit", "stats_warmup", "stats_every", "variance_floor", "bias_free")
+    payload["config"] = {k: v for k, v in payload["config"].items() if k not in new_fields}
+    payload["config"]["rec_score"] = "fused"
+    payload["rec_gauss"] = payload.pop("frame_density")
+    for key in ("sigma_raw", "stats_fits"):
+        del payload[key]
+    payload["format_version"] = 3
+    torch.save(payload, folder / "model.bin")
+    info = json.loads((folder / "method.json").read_text())
+    (folder / "method.json").write_text(json.dumps({**info, "method": "msvdd"}))
+    name, loaded = methods.load_detector(folder)
+    assert name == "frame-density-msvdd"
+    batch = train.subset(slice(0, 5))
+    np.testing.assert_array_equal(loaded.score(batch), det.score(batch))
+    (folder / "method.json").write_text(json.dumps({**info, "method": "msvdd-no-rec"}))
+    with pytest.raises(ModelFormatError, match=r"model\.bin: this 'msvdd-no-rec' model was saved .* again"):
+        methods.load_detector(folder)

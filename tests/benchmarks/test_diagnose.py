@@ -152,9 +152,20 @@ def test_cli_writes_both_files_and_reruns_the_same(
     printed = capsys.readouterr().out
     md = (out / "diagnosis.md").read_text()
     assert printed.strip() == md.strip()
-    assert "## 4. Score decomposition" in md and "R collapsed" in md  # a fresh model keeps its history
+    assert "## 4. Score decomposition" in md and "## 1. Training history" in md
+    assert "the radius R is not trained" in md  # `msvdd` holds mu and Sigma fixed between estimates
+    # D alone and its share of the score, and the estimates held during training with their ranks.
+    assert "D alone: AUC" in md and "D's share of the mean score on normal test windows" in md
+    assert "| after epoch | effective rank |" in md and "| final |" in md
     first = json.loads((out / "diagnosis.json").read_text())
     assert first["method"] == "msvdd" and first["history"] is not None
+    assert first["second_term"] == "reconstruction" and first["config"]["svdd_fit"] == "frozen"
+    s = first["config"]["s"]
+    assert [h["epoch"] for h in first["held"]] == [1, -1]  # smoke: 5 epochs, warm-up 1, every 5; final
+    assert all(1.0 <= h["effective_rank"] <= s and h["smallest_over_largest"] > 0 for h in first["held"])
+    assert first["sigma_raw"] is not None and len(first["sigma_raw"]["eigenvalues"]) == s
+    normal = next(t for t in first["terms"] if t["group"] == "normal")
+    assert 0.0 < normal["share_d"] < 1.0 and normal["share_d"] + normal["share_rec"] == pytest.approx(1.0)
     assert first["counts"]["train_used"] <= 40 and sum(first["counts"]["test_used"].values()) <= 40
     assert len(first["sigma"]["eigenvalues"]) == first["config"]["s"]
     assert set(first["encoding"]["r2"]) >= {"loudness", "motion"}

@@ -1,8 +1,10 @@
-"""`context-net-frames` (the densities of msvdd's input frames given their neighbours, without the
-network) against `msvdd.context` and `msvdd.context_net` by hand."""
+"""`context-net-frames` and `frame-density` (densities of the normalised input frames given their neighbours,
+without a network) against `msvdd.context` and `msvdd.context_net` by hand, and `frame-density` against the
+frame term of `frame-density-msvdd`."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,7 @@ from msvdd.context import fit_context_mixture
 from msvdd.context_net import fit_context_net
 from msvdd.contract import WindowError
 from msvdd.frontend import InputNormalizer
+from msvdd.model import MSVDD
 from msvdd.synthetic import toy_windows
 
 
@@ -64,3 +67,28 @@ def test_context_net_scores_the_audio_by_its_network_and_the_imu_by_the_context_
 def test_components_must_be_positive() -> None:
     with pytest.raises(ValueError, match="components = 0 is invalid"):
         ContextNetFrames(components=0)
+
+
+def test_frame_density_is_the_frame_term_of_frame_density_msvdd_without_its_network(tmp_path: Path) -> None:
+    torch.set_num_threads(1)
+    train, _ = toy_windows(40, 0, seed=3)
+    val, _ = toy_windows(12, 0, seed=7)  # enough for the validation MCD of s = 8: both choose epochs on it
+    test, _ = toy_windows(3, 3, seed=4)
+    twin = methods.make("frame-density", seed=5, scale="smoke").fit(train, val)
+    assert isinstance(twin, ContextNetFrames) and twin.imu_net
+    with_net = methods.make("frame-density-msvdd", seed=5, scale="smoke")
+    with_net.config = dataclasses.replace(with_net.config, epochs=1, batch_size=16)  # type: ignore[attr-defined]
+    with_net.fit(train, val)
+    assert isinstance(with_net, MSVDD) and with_net.config.frame_density
+    # The same densities of the same frames: the twin's terms are frame-density-msvdd's second term, and its
+    # score that term; frame-density-msvdd adds its network's D.
+    _, term = with_net.score_components(test)
+    np.testing.assert_allclose(twin.modality_scores(test).sum(axis=1), term, rtol=1e-5)
+    d, _ = with_net.score_components(test)
+    ratio = with_net.mean_d_ / with_net.mean_rec_
+    np.testing.assert_allclose(with_net.score(test), d + with_net.config.w * ratio * term, rtol=1e-12)
+    # Persistence of the IMU network.
+    methods.save_detector(twin, "frame-density", tmp_path / "m")
+    name, again = methods.load_detector(tmp_path / "m")
+    assert name == "frame-density"
+    np.testing.assert_array_equal(again.score(test), twin.score(test))

@@ -38,7 +38,7 @@ def test_modality_scores_sum_to_the_score() -> None:
 
 
 def test_frame_methods_are_the_frame_density_reference() -> None:
-    assert frame_methods() == ["context-net-frames"]
+    assert frame_methods() == ["frame-density", "context-net-frames"]
 
 
 def test_groups_known_by_construction() -> None:

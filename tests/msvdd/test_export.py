@@ -152,11 +152,13 @@ def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> Non
         {"use_imu": False},
         {"use_audio": False},
         {"fusion": "concat"},
-        {"audio_frontend": "logmel", "rec_score": "mean"},
-        {"imu_input": "all", "rec_score": "mean", "smooth_window": 0},
-        {"audio_frontend": "logmel", "imu_input": "all", "rec_score": "fused"},
-        {"rec_score": "fused"},
-        {"use_audio": False, "rec_score": "fused"},
+        {"audio_frontend": "logmel"},
+        {"imu_input": "all", "smooth_window": 0},
+        {"audio_frontend": "logmel", "imu_input": "all", "frame_density": True},
+        {"frame_density": True},
+        {"use_audio": False, "frame_density": True},
+        {"svdd_fit": "frozen", "bias_free": True},
+        {"svdd_fit": "frozen", "bias_free": True, "use_mahalanobis": False},
     ],
     ids=lambda o: "-".join(f"{k}={v}" for k, v in o.items()),
 )
@@ -233,9 +235,9 @@ def test_exported_lstms_start_from_zeros_and_are_squeezed(exported: Path) -> Non
     output goes straight into a Squeeze, and no Shape node computes anything for them."""
     graph = onnx.load(str(exported / ONNX_FILE)).graph
     lstms = [node for node in graph.node if node.op_type == "LSTM"]
-    # log-mel encoder and two IMU encoder layers; `msvdd`'s term scores the input frames, so the decoders'
-    # LSTMs are not in the graph
-    assert len(lstms) == 3
+    # the log-mel encoder's, the IMU encoder's two layers and the IMU decoder's two (`msvdd` scores its
+    # decoders' reconstruction error)
+    assert len(lstms) == 5
     readers = {name: node.op_type for node in graph.node for name in node.input}
     assert all(len(node.input) == 4 and readers[node.output[0]] == "Squeeze" for node in lstms)
     assert not [node for node in graph.node if node.op_type == "Shape"]

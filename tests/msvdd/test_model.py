@@ -218,10 +218,10 @@ def test_all_imu_axes_need_imu6(toy_train: Windows) -> None:
 
 
 def test_fused_term_by_hand(toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path) -> None:
-    cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", rec_score="fused")
+    cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", frame_density=True)
     model = MSVDD(cfg).fit(toy_train, toy_train.subset(slice(0, 16)))
-    assert model.rec_density_ is not None and all(isinstance(m, ContextNet) for m in model.rec_density_)
-    audio_net, imu_net = model.rec_density_
+    assert model.frame_density_ is not None and all(isinstance(m, ContextNet) for m in model.frame_density_)
+    audio_net, imu_net = model.frame_density_
     # The log-mel frames' density reads their neighbours only, the IMU frames' also the log-mel frames.
     assert (audio_net.p, audio_net.cross_p) == (64, 0) and (imu_net.p, imu_net.cross_p) == (56, 64)
     # Each term by hand: the networks fitted on the training windows' input frames (no residual: the
@@ -241,23 +241,30 @@ def test_fused_term_by_hand(toy_train: Windows, toy_test: tuple[Windows, np.ndar
     model.save(path)
     np.testing.assert_array_equal(MSVDD.load(path).score(toy_test[0]), model.score(toy_test[0]))
     payload = torch.load(path, weights_only=True)
-    del payload["rec_gauss"]
+    del payload["frame_density"]
     torch.save(payload, path)
-    with pytest.raises(ModelFormatError, match="field 'rec_gauss' is missing"):
+    with pytest.raises(ModelFormatError, match="field 'frame_density' is missing"):
         MSVDD.load(path)
 
 
 def test_retired_reconstruction_terms_are_refused_and_their_size_field_dropped() -> None:
-    with pytest.raises(ValueError, match=r"rec_score = 'mixture'; allowed: mean \| fused"):
-        MSVDDConfig(rec_score="mixture")
     saved = {**MSVDDConfig.smoke().to_dict(), "rec_components": 16}  # a model saved before the retirement
     assert MSVDDConfig.from_dict(saved) == MSVDDConfig.smoke()
+    # `rec_score` is retired: "mean" was Rec, "fused" the frame-density term (only with reconstruction).
+    old = MSVDDConfig.smoke().to_dict()
+    assert MSVDDConfig.from_dict({**old, "rec_score": "mean"}) == MSVDDConfig.smoke()
+    fused = MSVDDConfig.from_dict({**old, "rec_score": "fused"})
+    assert fused == MSVDDConfig.smoke(frame_density=True)
+    no_rec = {**old, "rec_score": "fused", "use_reconstruction": False}
+    assert MSVDDConfig.from_dict(no_rec) == MSVDDConfig.smoke(use_reconstruction=False)
+    with pytest.raises(ValueError, match=r"rec_score = 'mixture'; allowed: mean \| fused"):
+        MSVDDConfig.from_dict({**old, "rec_score": "mixture"})
 
 
-def test_the_reconstruction_term_is_chosen_after_training(toy_train: Windows) -> None:
-    # `rec_score` changes scoring only: training "fused" gives the network and D that "mean" gives.
+def test_the_frame_density_term_is_chosen_after_training(toy_train: Windows) -> None:
+    # `frame_density` changes scoring only: the network and D are those of the reconstruction term's model.
     cfg = MSVDDConfig.smoke(epochs=1, audio_frontend="logmel", imu_input="all", val_fraction=0.0)
-    a = MSVDD(dataclasses.replace(cfg, rec_score="mean")).fit(toy_train)
-    b = MSVDD(dataclasses.replace(cfg, rec_score="fused")).fit(toy_train)
+    a = MSVDD(dataclasses.replace(cfg, frame_density=False)).fit(toy_train)
+    b = MSVDD(dataclasses.replace(cfg, frame_density=True)).fit(toy_train)
     batch = toy_train.subset(slice(0, 8))
     np.testing.assert_array_equal(a.score_components(batch)[0], b.score_components(batch)[0])

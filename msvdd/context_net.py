@@ -20,10 +20,11 @@ window's distance is sqrt(2 (nll - floor)) of its least likely frame.
 
 Every constant was set before the network was first run, none tuned (`CROSS_NEIGHBOURS` = 2 is the frames'
 own `CONTEXT_NEIGHBOURS`). Where it is used was chosen on the dev dataset (seed 1) of the `paper` preset
-(docs/detectors.md): the audio term of the reference `context-net-frames` and of `msvdd`, on the
-normalised log-mel input frames given their neighbours; and `msvdd`'s IMU term, the IMU input frames given
-their neighbours and the log-mel frames around them (on the dev set the audio context helped the IMU frames'
-density, an interval clear of zero; the IMU context did nothing for the log-mel frames').
+(docs/detectors.md): the audio term of the references `context-net-frames`, `frame-density` and of
+`frame-density-msvdd` (`MSVDDConfig.frame_density`; the method was named `msvdd` in 0.1.0), on the
+normalised log-mel input frames given their neighbours; and the IMU term of the latter two, the IMU input
+frames given their neighbours and the log-mel frames around them (on the dev set the audio context helped
+the IMU frames' density, an interval clear of zero; the IMU context did nothing for the log-mel frames').
 """
 
 from __future__ import annotations

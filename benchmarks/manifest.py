@@ -40,8 +40,8 @@ training and test nominal sequence lengths (`nominal_train_duration_s`, `nominal
 4: episodes of format 3 (wheel odometry, the faults' defect model, `out_of_round` for `imbalance`); a fault
 window needs its faulty wheel to have turned (`benchmarks.dataset.MIN_FAULT_REVOLUTIONS`).
 5: the same layout; the faults' data changed (a flat's slap reverses its corner's fall and rings the wheel's
-bounce on its tread, a spalled bearing grinds loudest where its balls strike, worn gears howl louder), so a
-seed makes other fault episodes than under format 4, which stays readable.
+bounce on its tread, a spalled bearing grinds loudest where its balls strike), so a seed makes other fault
+episodes than under format 4, which stays readable.
 """
 READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5)
 """Dataset format versions `Manifest.load` reads."""

@@ -91,9 +91,8 @@ RATTLE_RATE = 35.0
 """Clunks per second of a loose hub at `NOMINAL_RIM_SPEED` (proportional to speed)."""
 NOMINAL_RIM_SPEED = 0.6
 """Rim speed at which the loose hub clunks `RATTLE_RATE` times a second, m/s."""
-WEAR_GAIN = 12.0
-"""Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+22 dB: pitted,
-worn teeth that howl)."""
+WEAR_GAIN = 6.0
+"""Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+17 dB)."""
 MOTOR_TORQUE_LOSS = 0.4
 """Fraction of motor torque lost at severity 1."""
 MOTOR_RIPPLE = 0.25

@@ -225,8 +225,9 @@ def check_saved(name: str, detector: Detector) -> str:
 
 def register_methods() -> None:
     """Register "msvdd", every ablation and `frame-density-msvdd`."""
-    from benchmarks.methods.registry import register
+    from benchmarks.methods.registry import register, register_load_check
 
+    register_load_check(check_saved)
     for name, variant in ABLATIONS.items():
         modality = "audio" if variant.overrides.get("use_imu") is False else "audio+imu"
         modality = "imu" if variant.overrides.get("use_audio") is False else modality

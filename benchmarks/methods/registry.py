@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import platform
+from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
 
@@ -67,6 +68,18 @@ def register(
     _REGISTRY[name] = check_spec(
         MethodSpec(name, factory, family, modality, description, cls, label, paper, config)
     )
+
+
+LoadCheck = Callable[[str, Detector], str]
+"""Checks a loaded model: (saved method name, detector) -> the name it loads under, or ModelFormatError."""
+_LOAD_CHECKS: list[LoadCheck] = []
+
+
+def register_load_check(check: LoadCheck) -> None:
+    """Have `load_detector` pass every loaded model through `check` (a family whose names changed maps its
+    old models to their new names, or refuses them); registered once per check."""
+    if check not in _LOAD_CHECKS:
+        _LOAD_CHECKS.append(check)
 
 
 def names(family: str | None = None) -> list[str]:
@@ -167,7 +180,8 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
             method, or a malformed `method.json` or model file (the method's own `load` raises it for the
             model file, as `msvdd.model.MSVDD.load` and every baseline do), or an M-SVDD model saved before
             its method changed what it is; one line naming the file and what was expected. A model of a
-            renamed method loads under its new name (`benchmarks.methods.msvdd_family.check_saved`).
+            renamed method loads under its new name (the checks of `register_load_check`, e.g.
+            `benchmarks.methods.msvdd_family.check_saved`).
     """
     folder = Path(directory)
     if folder.is_file():
@@ -202,9 +216,9 @@ def load_detector(directory: str | os.PathLike[str]) -> tuple[str, Detector]:
     if not model_path.is_file():
         raise InputNotFoundError(f"{model_path} does not exist (named by {meta_path})")
     detector: Detector = method.cls.load(model_path)
-    from benchmarks.methods.msvdd_family import check_saved
-
     try:
-        return check_saved(name, detector), detector
+        for check in _LOAD_CHECKS:
+            name = check(name, detector)
     except ModelFormatError as exc:
         raise ModelFormatError(f"{model_path}: {exc}") from exc
+    return name, detector

@@ -146,3 +146,21 @@ def test_a_wall_hit_is_louder_than_a_cable_crossed_faster(quiet: AudioConfig) ->
     strike = strike_impulse("cable", TRANSIENT_HEIGHT["cable"], 1.2, radius, corner)
     assert strike < 0.2 * hit
     assert 10 * np.log10(e_wall / e_cable) > 10.0
+
+
+@pytest.mark.parametrize("phase", [0.0, 1.3, 4.0])
+def test_a_spalled_bearing_grinds_loudest_where_its_balls_strike(phase: float, quiet: AudioConfig) -> None:
+    # The physics strikes where order x (angle - phase) is a multiple of 2 pi (`sim.faults`); the grinding
+    # swells at those same angles whatever the spall's angular position.
+    omega, order = 20.0, 3.57
+    fault = dataclasses.replace(_record("bearing", 1.0, 0.0, 10.0, order, 1600.0), phase=phase)
+    trace = make_trace(3.0, omega, faults=(fault,), surface="carpet")  # no strikes: the grinding alone
+    growl = render(trace, quiet, seed=5).stems["faults"][:, 1].astype(np.float64)
+    t = np.arange(growl.size) / SR
+    keep = t > 0.5
+    at_defect = np.mod(order * (omega * t[keep] - phase), 2 * np.pi)  # 0 at each strike
+    power = growl[keep] ** 2
+    bins = np.minimum((at_defect / (2 * np.pi) * 8).astype(int), 7)
+    mean = np.bincount(bins, power, 8) / np.bincount(bins, minlength=8)
+    loudest = (np.argmax(mean) + 0.5) / 8  # of a defect period
+    assert min(loudest, 1.0 - loudest) < 0.13, mean

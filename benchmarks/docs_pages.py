@@ -66,7 +66,7 @@ class PerfResults:
     """Figure name -> what it measures (empty where not recorded)."""
 
 
-_PERF_META: tuple[str, ...] = ("machine", "quick", "command", "code_version", "descriptions")
+_PERF_META: tuple[str, ...] = ("machine", "quick", "command", "code_version", "descriptions", "ratios")
 """The keys of a perf JSON that are not figures."""
 
 

@@ -1,9 +1,26 @@
-"""The shape of a performance stage measured by `msvdd-bench perf`."""
+"""The shape of a performance stage measured by `msvdd-bench perf`, and the reference kernel its ratios use.
+
+Absolute rates move with the machine and with whatever else runs on it, so each stage also reports ratios
+against a reference measured in the same process during the same run: a kernel of known cost (one FFT
+convolution, `fft_reference_s`) or a bare loop over the same work (the simulator's `mj_step` loop). A stage
+names those figures in `PerfStage.ratios`, with the direction that is better; `benchmarks.perf_gate` compares
+them against a baseline run.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+Better = Literal["lower", "higher"]
+"""Which way a ratio figure improves: a cost against the reference (lower) or a speed-up (higher)."""
+
+REFERENCE_TAPS = 4096
+"""Length of the reference convolution's kernel (a room impulse response's order of magnitude)."""
 
 
 @dataclass(frozen=True)
@@ -16,3 +33,28 @@ class PerfStage:
     """measure(quick) -> figures; `quick` shrinks the workload for smoke tests."""
     describe: dict[str, str]
     """One line per figure: what it means and its target."""
+    ratios: Mapping[str, Better] = field(default_factory=dict)
+    """The figures that are ratios against a reference measured in the same run, and which way is better:
+    the ones a baseline comparison (`msvdd-bench perf --baseline`) gates."""
+
+
+def fft_reference_s(
+    n_samples: int, channels: int = 2, repeats: int = 3, clock: Callable[[], float] = time.process_time
+) -> float:
+    """Best-of-`repeats` seconds on `clock` of the reference kernel: one FFT convolution
+    (`scipy.signal.oaconvolve`) of `channels` x `n_samples` seeded noise with a fixed `REFERENCE_TAPS`-tap
+    kernel, the shape of the audio render's work. Its cost depends only on `n_samples` and the machine, so
+    a figure divided by it measured in the same run cancels the machine's speed and its load."""
+    from scipy.signal import oaconvolve
+
+    rng = np.random.default_rng(0)
+    signal = rng.standard_normal((max(int(n_samples), 1), channels))
+    kernel = rng.standard_normal((REFERENCE_TAPS, 1)) * np.hanning(REFERENCE_TAPS)[:, None]
+    best = float("inf")
+    for _ in range(max(repeats, 1)):
+        start = clock()
+        out = oaconvolve(signal, kernel, mode="full", axes=0)
+        best = min(best, clock() - start)
+    if out.shape != (signal.shape[0] + REFERENCE_TAPS - 1, channels):  # keeps the result alive
+        raise RuntimeError(f"the reference convolution returned shape {out.shape}")
+    return max(best, 1e-9)

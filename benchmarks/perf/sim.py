@@ -63,4 +63,5 @@ STAGE = PerfStage(
         "sim_bare_us_per_step": "bare mj_step loop CPU microseconds per physics step",
         "sim_bare_rtf": "real-time factor of the bare mj_step loop (the ceiling for sim_rtf)",
     },
+    ratios={"sim_overhead_vs_bare": "lower"},
 )

@@ -217,3 +217,21 @@ def test_every_stage_gates_only_figures_it_describes() -> None:
     for stage in stages().values():
         assert set(stage.ratios) <= set(stage.describe), stage.name
         assert set(stage.ratios.values()) <= {"lower", "higher"}, stage.name
+
+
+def test_the_feature_extraction_is_divided_by_a_reference_as_long_as_the_windows_audio(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from benchmarks.perf import baselines
+
+    lengths: list[int] = []
+
+    def reference(n_samples: int, channels: int = 2, repeats: int = 3, clock: object = None) -> float:
+        lengths.append(n_samples)
+        return 0.5
+
+    monkeypatch.setattr(baselines, "fft_reference_s", reference)
+    monkeypatch.setattr(baselines, "time", types.SimpleNamespace(perf_counter=_FakeTime(1.0).read))
+    figures = baselines.STAGE.measure(True)
+    assert lengths == [100 * 8820]  # 100 toy windows of 8820 stereo samples
+    assert figures["features_vs_fft"] == pytest.approx(1.0 / 0.5)

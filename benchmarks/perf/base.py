@@ -38,6 +38,21 @@ class PerfStage:
     the ones a baseline comparison (`msvdd-bench perf --baseline`) gates."""
 
 
+def best_time(
+    fn: Callable[[int], object], repeats: int, clock: Callable[[], float], warm: bool = True
+) -> float:
+    """Best-of-`repeats` seconds on `clock` of `fn(r)` for r = 0, 1, ...; after one untimed `fn(-1)` when
+    `warm` (first calls pay one-time costs: imports, caches, allocator growth)."""
+    if warm:
+        fn(-1)
+    best = float("inf")
+    for r in range(max(repeats, 1)):
+        start = clock()
+        fn(r)
+        best = min(best, clock() - start)
+    return best
+
+
 def fft_reference_s(
     n_samples: int, channels: int = 2, repeats: int = 3, clock: Callable[[], float] = time.process_time
 ) -> float:

@@ -13,7 +13,7 @@ import pytest
 from benchmarks.cli import main
 from benchmarks.docs_pages import read_perf
 from benchmarks.errors import UserError
-from benchmarks.perf.base import PerfStage, fft_reference_s
+from benchmarks.perf.base import PerfStage, best_time, fft_reference_s
 from benchmarks.perf_gate import RatioCheck, compare_perf
 
 
@@ -235,3 +235,18 @@ def test_the_feature_extraction_is_divided_by_a_reference_as_long_as_the_windows
     figures = baselines.STAGE.measure(True)
     assert lengths == [100 * 8820]  # 100 toy windows of 8820 stereo samples
     assert figures["features_vs_fft"] == pytest.approx(1.0 / 0.5)
+
+
+def test_best_time_takes_the_fastest_repeat_after_an_untimed_warm_up() -> None:
+    costs = {-1: 100.0, 0: 3.0, 1: 2.0, 2: 5.0}  # the warm-up call is the slowest and is not timed
+    clock = _FakeTime(0.0)
+    calls: list[int] = []
+
+    def fn(r: int) -> None:
+        calls.append(r)
+        clock.now += costs[r]
+
+    assert best_time(fn, 3, clock.read) == pytest.approx(2.0)
+    assert calls == [-1, 0, 1, 2]
+    calls.clear()
+    assert best_time(fn, 1, clock.read, warm=False) == pytest.approx(3.0) and calls == [0]

@@ -22,6 +22,11 @@ Better = Literal["lower", "higher"]
 REFERENCE_TAPS = 4096
 """Length of the reference convolution's kernel (a room impulse response's order of magnitude)."""
 
+REFERENCE_BLOCK = 2**19
+"""The longest reference convolution run (about 12 s at 44.1 kHz, 8 MB in stereo): a longer one is this
+block's time scaled by its length (overlap-add costs the same per sample), so that the reference measures
+arithmetic, not how fast the process can map hundreds of MB of fresh memory (which varies run to run)."""
+
 
 @dataclass(frozen=True)
 class PerfStage:
@@ -59,11 +64,16 @@ def fft_reference_s(
     """Best-of-`repeats` seconds on `clock` of the reference kernel: one FFT convolution
     (`scipy.signal.oaconvolve`) of `channels` x `n_samples` seeded noise with a fixed `REFERENCE_TAPS`-tap
     kernel, the shape of the audio render's work. Its cost depends only on `n_samples` and the machine, so
-    a figure divided by it measured in the same run cancels the machine's speed and its load."""
+    a figure divided by it measured in the same run cancels the machine's speed and its load. Beyond
+    `REFERENCE_BLOCK` samples, the block's time x n_samples / REFERENCE_BLOCK."""
     from scipy.signal import oaconvolve
 
+    n_samples = max(int(n_samples), 1)
+    if n_samples > REFERENCE_BLOCK:
+        block = fft_reference_s(REFERENCE_BLOCK, channels, repeats, clock)
+        return block * n_samples / REFERENCE_BLOCK
     rng = np.random.default_rng(0)
-    signal = rng.standard_normal((max(int(n_samples), 1), channels))
+    signal = rng.standard_normal((n_samples, channels))
     kernel = rng.standard_normal((REFERENCE_TAPS, 1)) * np.hanning(REFERENCE_TAPS)[:, None]
     best = float("inf")
     for _ in range(max(repeats, 1)):

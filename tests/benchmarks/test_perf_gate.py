@@ -13,7 +13,7 @@ import pytest
 from benchmarks.cli import main
 from benchmarks.docs_pages import read_perf
 from benchmarks.errors import UserError
-from benchmarks.perf.base import PerfStage, best_time, fft_reference_s
+from benchmarks.perf.base import REFERENCE_BLOCK, PerfStage, best_time, fft_reference_s
 from benchmarks.perf_gate import RatioCheck, compare_perf
 
 
@@ -150,6 +150,12 @@ def test_the_reference_kernel_runs_on_the_clock_it_is_given() -> None:
 
     assert fft_reference_s(1000, repeats=3, clock=clock) == pytest.approx(0.25)
     assert len(calls) == 6
+
+
+def test_a_long_reference_is_one_block_scaled_by_its_length() -> None:
+    clock = _FakeTime(0.5)  # every reading 0.5 s later: each convolution takes 0.5 s
+    assert fft_reference_s(3 * REFERENCE_BLOCK, channels=1, repeats=1, clock=clock.read) == pytest.approx(1.5)
+    assert clock.now == pytest.approx(1.0)  # one block convolved (two readings), not three
 
 
 class _FakeTime:

@@ -1,7 +1,9 @@
-"""Robot models from assets/ with per-unit variation (wheel radius, gear ratio, mass distribution)."""
+"""Robot models from assets/ with per-unit variation (wheel radius, gear ratio, mass distribution), and each
+unit's part of a world's MJCF text (`robot_mjcf`, made once per unit)."""
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.resources
 from dataclasses import dataclass
@@ -130,3 +132,50 @@ def build_robot(unit: Unit) -> BuiltRobot:
         wheelbase=drive.wheelbase,
     )
     return BuiltRobot(model=model, info=info, torque_limit=float(torque_limit))
+
+
+@dataclass(frozen=True)
+class RobotMJCF:
+    """A robot unit's part of a world's MJCF text, as dm_control.mjcf writes it when the robot is attached
+    to an arena on a free joint named `root` (see `sim.world.world_xml`)."""
+
+    robot: BuiltRobot
+    """The robot (its tree is attached to a throwaway arena: read it, do not attach it again)."""
+    defaults: str
+    """The robot's default classes (lines inside the world's top `<default>`, after its `/` class)."""
+    body: str
+    """Inside the attachment frame's `<body>`: the free joint and the robot's bodies, with the frame's
+    closing tag (the frame's opening line, which holds the start pose, is the world's)."""
+    actuators: str
+    """The robot's actuators (lines inside `<actuator>`)."""
+
+
+@functools.lru_cache(maxsize=64)
+def robot_mjcf(unit: Unit, conaffinity: int | None) -> RobotMJCF:
+    """The unit's MJCF text, made once per unit and collision setting (through dm_control.mjcf, which costs
+    more than writing the rest of a world's text and compiling it).
+
+    Args:
+        unit: the robot unit.
+        conaffinity: the collision affinity of every geom outside the `visual` class (None: the model's).
+    """
+    robot = build_robot(unit)
+    if conaffinity is not None:
+        for geom in robot.model.find_all("geom"):
+            if geom.dclass is None or geom.dclass.dclass != "visual":
+                geom.conaffinity = conaffinity
+    arena = mjcf.RootElement(model="robot")
+    arena.attach(robot.model).add("freejoint", name="root")
+    text = arena.to_xml_string()
+    head = '  <default>\n    <default class="/"/>\n'
+    frame = f'    <body name="{robot.model.model}/">\n'
+    start, end = text.index(head) + len(head), text.index("\n  </default>\n") + 1
+    body_start, body_end = text.index(frame) + len(frame), text.index("\n  </worldbody>\n") + 1
+    act_start = text.index("\n  <actuator>\n") + len("\n  <actuator>\n")
+    act_end = text.index("\n  </actuator>\n") + 1
+    return RobotMJCF(
+        robot=robot,
+        defaults=text[start:end],
+        body=text[body_start:body_end],
+        actuators=text[act_start:act_end],
+    )

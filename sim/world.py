@@ -1,22 +1,25 @@
-"""World building with dm_control.mjcf: arena, floor surface, transients, obstacles and the robot.
+"""World building: arena, floor surface, transients, obstacles and the robot, as MJCF text.
 
-`build_world(scenario)` returns a compiled `mujoco.MjModel` plus the index tables the rollout needs
-(sensor slices, body and mocap ids). Sensors are MuJoCo's own: wheel joint angle/speed, actuator
-torque, base pose and velocity, IMU accelerometer/gyro/velocimeter, microphone sites, and one
-`contact` sensor per obstacle (robot subtree vs obstacle) and per wheel (wheel vs transients).
+The text is written directly, in the form dm_control.mjcf gives the same world (`sim.world_mjcf` builds it
+through dm_control's element tree, the reference tests/sim checks it against); the robot's part is
+dm_control's, made once per robot unit (`sim.robot.robot_mjcf`). `build_world(scenario)` returns a
+compiled `mujoco.MjModel` plus the index tables the rollout needs (sensor slices, body and mocap ids).
+Sensors are MuJoCo's own: wheel joint angle/speed, actuator torque, base pose and velocity, IMU
+accelerometer/gyro/velocimeter, microphone sites, and one `contact` sensor per obstacle (robot subtree vs
+obstacle) and per wheel (wheel vs transients).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from dm_control import mjcf
 from scipy import ndimage
 
-from sim.robot import BuiltRobot, build_robot
+from sim.robot import BuiltRobot, robot_mjcf
 from sim.scenario import OBSTACLE_MASS, Obstacle, Scenario
 from sim.trace import ObstacleRecord
 from sim.vocab import TRANSIENT_HEIGHT
@@ -122,20 +125,17 @@ class World:
 
 
 def build_world(scenario: Scenario) -> World:
-    """Build and compile the scenario's world."""
-    robot = build_robot(scenario.robot)
-    arena = _arena(scenario)
-    hfield_data = _add_floor(arena, scenario, SURFACES[scenario.surface])
-    obstacles = list(scenario.obstacles) + _border_walls(scenario)
-    obstacle_bodies = [_add_obstacle(arena, i, ob) for i, ob in enumerate(obstacles)]
-    if hfield_data is not None:
-        _keep_obstacles_off_heightfield(robot, obstacles, obstacle_bodies)
-    transients = _add_transients(arena, scenario)
-    _attach_robot(arena, robot, scenario.route.start)
-    _add_sensors(arena, robot, obstacle_bodies, transients)
-    model = mujoco.MjModel.from_xml_string(arena.to_xml_string(), arena.get_assets())
+    """Build and compile the scenario's world.
+
+    Its MJCF text (`world_xml`) is written directly rather than through dm_control.mjcf's element tree,
+    which cost many times the compilation; the text is the one dm_control writes for the same world
+    (`sim.world_mjcf`, checked character for character in tests/sim), so the compiled model is too.
+    """
+    xml, robot, hfield_data = world_xml(scenario)
+    model = mujoco.MjModel.from_xml_string(xml)
     if hfield_data is not None:
         model.hfield_data[:] = hfield_data
+    obstacles = list(scenario.obstacles) + border_walls(scenario)
     w = len(robot.info.wheel_names)
     slices = _sensor_slices(w, len(obstacles))
     if model.nsensordata != slices.transient_contact + 7 * w:
@@ -143,75 +143,195 @@ def build_world(scenario: Scenario) -> World:
     return _world(model, robot, scenario, obstacles, slices)
 
 
-def _keep_obstacles_off_heightfield(
-    robot: BuiltRobot, obstacles: list[Obstacle], obstacle_bodies: list[mjcf.Element]
-) -> None:
-    """Collision bits on a rough floor: free obstacles rest on a flat collision plane, not on the
-    heightfield (box-heightfield contacts are many and costly); the robot touches the heightfield and the
-    obstacles."""
-    for ob, body in zip(obstacles, obstacle_bodies, strict=True):
-        if ob.kind in OBSTACLE_MASS:
-            for geom in body.find_all("geom"):
-                geom.contype, geom.conaffinity = _FREE_OBSTACLE_BITS
-    for geom in robot.model.find_all("geom"):
-        if geom.dclass is None or geom.dclass.dclass != "visual":
-            geom.conaffinity = _ROBOT_AFFINITY
+def world_xml(scenario: Scenario) -> tuple[str, BuiltRobot, np.ndarray | None]:
+    """The world's MJCF text (arena, floor, obstacles, transients, the robot on a free joint at the
+    route's start, sensors), the robot, and the heightfield's data (None on a flat floor).
 
-
-def _add_transients(arena: mjcf.RootElement, scenario: Scenario) -> mjcf.Element:
-    """The `transients` body holding every transient's geom (a site keeps it when there are none)."""
-    transients = arena.worldbody.add("body", name="transients")
+    The text is dm_control.mjcf's for the same world (`sim.world_mjcf.mjcf_world`): its element and
+    attribute order, its names for unnamed elements (`//unnamed_geom_<index>`), floats written `%.17g`
+    (exact); the robot's part comes from `sim.robot.robot_mjcf`, made once per unit.
+    """
+    surface = SURFACES[scenario.surface]
+    field = heightfield(scenario)
+    part = robot_mjcf(scenario.robot, None if field is None else ROBOT_AFFINITY)
+    obstacles = list(scenario.obstacles) + border_walls(scenario)
+    out = [
+        f'<mujoco model="arena_{scenario.environment}">\n',
+        '  <compiler angle="radian"/>\n',
+        f'  <option timestep="{_f(PHYSICS_DT)}" integrator="implicitfast" cone="elliptic" '
+        'noslip_iterations="0"/>\n',
+        '  <size memory="8M"/>\n',
+        '  <default>\n    <default class="/"/>\n',
+        part.defaults,
+        "  </default>\n",
+    ]
+    if field is not None:
+        out.append(
+            f'  <asset>\n    <hfield name="ground" nrow="{field.nrow}" ncol="{field.ncol}" '
+            f'size="{_fs(field.size)}"/>\n  </asset>\n'
+        )
+    out.append("  <worldbody>\n")
+    geoms = _floor_xml(out, scenario, surface, field is not None)
+    joints = 0
+    for i, ob in enumerate(obstacles):
+        geoms, joints = _obstacle_xml(out, i, ob, field is not None, geoms, joints)
+    out.append('    <body name="transients">\n')
     for i, tr in enumerate(scenario.transients):
-        _add_transient(transients, i, tr.kind, tr.x, tr.y, tr.yaw, tr.length)
+        out.append(_transient_xml(i, tr.kind, tr.x, tr.y, tr.yaw, tr.length))
     if not scenario.transients:
-        transients.add("site", name="transients_empty", pos=[0, 0, -1])
-    return transients
+        out.append('      <site name="transients_empty" class="/" pos="0 0 -1"/>\n')
+    out.append("    </body>\n")
+    x0, y0, yaw0 = scenario.route.start
+    robot = part.robot
+    pos = [x0, y0, float(robot.info.wheel_radius.mean()) + 0.002]
+    quat = [np.cos(yaw0 / 2), 0.0, 0.0, np.sin(yaw0 / 2)]
+    prefix = robot.model.model + "/"
+    out += [
+        f'    <body pos="{_fs(pos)}" quat="{_fs(quat)}" name="{prefix}">\n',
+        part.body,
+        "  </worldbody>\n  <actuator>\n",
+        part.actuators,
+        "  </actuator>\n",
+    ]
+    _sensors_xml(out, prefix, robot.info.wheel_names, len(obstacles))
+    out.append("</mujoco>\n")
+    return "".join(out), robot, field.data if field is not None else None
 
 
-def _attach_robot(arena: mjcf.RootElement, robot: BuiltRobot, start: tuple[float, float, float]) -> None:
-    """Attach the robot on a free joint at the route's start pose (x, y, yaw), its wheels just above the
-    floor."""
-    x0, y0, yaw0 = start
-    frame = arena.attach(robot.model)
-    frame.pos = [x0, y0, float(robot.info.wheel_radius.mean()) + 0.002]
-    frame.quat = [np.cos(yaw0 / 2), 0.0, 0.0, np.sin(yaw0 / 2)]
-    frame.add("freejoint", name="root")
+def _f(x: float) -> str:
+    """A float as dm_control.mjcf writes it (`%.17g`: exact)."""
+    return format(x, ".17g")
 
 
-def _add_sensors(
-    arena: mjcf.RootElement, robot: BuiltRobot, obstacle_bodies: list[mjcf.Element], transients: mjcf.Element
-) -> None:
+def _fs(values: Sequence[float] | np.ndarray) -> str:
+    """Floats as dm_control.mjcf writes an array attribute."""
+    return " ".join([format(float(x), ".17g") for x in values])
+
+
+def _floor_xml(out: list[str], scenario: Scenario, surface: Surface, rough: bool) -> int:
+    """The floor's geoms (see `sim.world_mjcf._add_floor`); returns how many."""
+    hx, hy = scenario.arena
+    friction = _fs([surface.friction, 0.02, 0.002])
+    solref = _fs(surface.solref)
+    size = _fs([hx + 1, hy + 1, 0.1])
+    if not rough:
+        out.append(
+            f'    <geom name="floor" class="/" type="plane" size="{size}" friction="{friction}" '
+            f'solref="{solref}" rgba="{_fs([0.55, 0.55, 0.5, 1])}"/>\n'
+        )
+        return 1
+    out.append(
+        f'    <geom name="floor" class="/" type="hfield" contype="{HFIELD_BITS[0]}" '
+        f'conaffinity="{HFIELD_BITS[1]}" friction="{friction}" solref="{solref}" '
+        f'pos="{_fs([0, 0, -3 * surface.roughness])}" hfield="ground" rgba="{_fs([0.45, 0.5, 0.35, 1])}"/>\n'
+    )
+    out.append(
+        f'    <geom name="obstacle_floor" class="/" type="plane" contype="{PLANE_BITS[0]}" '
+        f'conaffinity="{PLANE_BITS[1]}" group="3" size="{size}" friction="{friction}" rgba="0 0 0 0"/>\n'
+    )
+    return 2
+
+
+def _obstacle_xml(
+    out: list[str], i: int, ob: Obstacle, rough: bool, geoms: int, joints: int
+) -> tuple[int, int]:
+    """Obstacle `i`'s body (see `sim.world_mjcf._add_obstacle`); `geoms` and `joints` are the arena's
+    geoms and joints before it (unnamed elements are named by their index); returns them after it."""
+    sx, sy, sz = ob.size
+    quat = _fs([np.cos(ob.yaw / 2), 0.0, 0.0, np.sin(ob.yaw / 2)])
+    rgba = _fs(COLORS[ob.kind])
+    mocap = ' mocap="true"' if ob.kind == "pedestrian" else ""
+    out.append(f'    <body name="obstacle_{i}" pos="{_fs([ob.x, ob.y, sz])}" quat="{quat}"{mocap}>\n')
+    lines: list[str] = []
+    if ob.kind == "pedestrian":
+        radius = min(sx, sy)
+        lines.append(
+            f'type="capsule" size="{_fs([radius, sz - radius])}" solref="{_fs([0.03, 1.0])}" rgba="{rgba}"'
+        )
+    elif ob.kind in OBSTACLE_MASS:
+        out.append(f'      <freejoint name="//unnamed_joint_{joints}"/>\n')
+        joints += 1
+        bits = f'contype="{FREE_OBSTACLE_BITS[0]}" conaffinity="{FREE_OBSTACLE_BITS[1]}" ' if rough else ""
+        lines.append(
+            f'type="box" {bits}size="{_fs([sx, sy, sz])}" friction="{_fs([0.5, 0.01, 0.001])}" '
+            f'mass="{_f(OBSTACLE_MASS[ob.kind])}" rgba="{rgba}"'
+        )
+    elif ob.kind == "chair":
+        leg = 0.012
+        for dx in (-1, 1):
+            for dy in (-1, 1):
+                lines.append(
+                    f'type="capsule" size="{_fs([leg, sz - 0.02])}" '
+                    f'pos="{_fs([dx * (sx - leg), dy * (sy - leg), -0.02])}" rgba="{rgba}"'
+                )
+        lines.append(f'type="box" size="{_fs([sx, sy, 0.02])}" pos="{_fs([0, 0, sz - 0.02])}" rgba="{rgba}"')
+    else:
+        lines.append(f'type="box" size="{_fs([sx, sy, sz])}" rgba="{rgba}"')
+    for line in lines:
+        out.append(f'      <geom name="//unnamed_geom_{geoms}" class="/" {line}/>\n')
+        geoms += 1
+    out.append("    </body>\n")
+    return geoms, joints
+
+
+def _transient_xml(i: int, kind: str, x: float, y: float, yaw: float, length: float) -> str:
+    """Transient `i`'s geom (see `sim.world_mjcf._add_transient`)."""
+    h = TRANSIENT_HEIGHT[kind]
+    quat = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    head = f'      <geom name="transient_{i}" class="/" '
+    if kind in ("seam", "threshold"):  # a low strip across the path; a threshold is wider
+        half_width = 0.01 if kind == "seam" else 0.04
+        return (
+            f'{head}type="box" size="{_fs([length / 2, half_width, h / 2])}" pos="{_fs([x, y, h / 2])}" '
+            f'quat="{_fs(quat)}" rgba="{_fs([0.3, 0.3, 0.3, 1])}"/>\n'
+        )
+    if kind == "cable":
+        half = length / 2
+        c, s = np.cos(yaw), np.sin(yaw)
+        ends = [x - c * half, y - s * half, h / 2, x + c * half, y + s * half, h / 2]
+        rgba = _fs([0.1, 0.1, 0.1, 1])
+        return f'{head}type="capsule" size="{_f(h / 2)}" fromto="{_fs(ends)}" rgba="{rgba}"/>\n'
+    if kind == "kerb_ramp":
+        # A plate tilted about its long axis: rises from the floor to `h` over 0.3 m, then drops.
+        pitch = float(np.arctan2(h, 0.3))
+        q_tilt = np.array([np.cos(pitch / 2), np.sin(pitch / 2), 0.0, 0.0])
+        q = quat_mul(np.array(quat), q_tilt)
+        return (
+            f'{head}type="box" size="{_fs([length / 2, 0.15 / np.cos(pitch), 0.004])}" '
+            f'pos="{_fs([x, y, h / 2 - 0.004])}" quat="{_fs(q)}" rgba="{_fs([0.5, 0.5, 0.45, 1])}"/>\n'
+        )
+    return (
+        f'{head}type="sphere" size="{_f(h)}" pos="{_fs([x, y, 0.0])}" rgba="{_fs([0.4, 0.35, 0.3, 1])}"/>\n'
+    )
+
+
+def _sensors_xml(out: list[str], prefix: str, wheels: tuple[str, ...], k: int) -> None:
     """Every sensor, in the order `_sensor_slices` lays out: wheels, base, IMU, mics, obstacles, contacts."""
-    base = robot.model.find("body", "base")
-    wheels = robot.info.wheel_names
-    sensor = arena.sensor
-    for name in wheels:
-        sensor.add("jointpos", name=f"angle_{name}", joint=robot.model.find("joint", name))
-    for name in wheels:
-        sensor.add("jointvel", name=f"speed_{name}", joint=robot.model.find("joint", name))
-    for name in wheels:
-        sensor.add("actuatorfrc", name=f"torque_{name}", actuator=robot.model.find("actuator", name))
-    imu = robot.model.find("site", "imu")
-    sensor.add("framepos", name="base_pos", objtype="xbody", objname=base)
-    sensor.add("framequat", name="base_quat", objtype="xbody", objname=base)
-    sensor.add("framelinvel", name="base_linvel", objtype="xbody", objname=base)
-    sensor.add("gyro", name="gyro", site=imu)
-    sensor.add("accelerometer", name="acc", site=imu)
-    sensor.add("velocimeter", name="vel", site=imu)
-    sensor.add("framepos", name="mic_left", objtype="site", objname=robot.model.find("site", "mic_left"))
-    sensor.add("framepos", name="mic_right", objtype="site", objname=robot.model.find("site", "mic_right"))
-    for i, body in enumerate(obstacle_bodies):
-        sensor.add("framepos", name=f"obstacle_pos_{i}", objtype="xbody", objname=body)
-    for i, body in enumerate(obstacle_bodies):
-        sensor.add(
-            "contact", name=f"hit_{i}", subtree1=base, body2=body, data="found force pos",
-            reduce="netforce", num=1,
-        )  # fmt: skip
-    for name in wheels:
-        sensor.add(
-            "contact", name=f"bump_{name}", geom1=robot.model.find("geom", name), body2=transients,
-            data="found force pos", reduce="netforce", num=1,
-        )  # fmt: skip
+    out.append("  <sensor>\n")
+    out += [f'    <jointpos name="angle_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
+    out += [f'    <jointvel name="speed_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
+    out += [f'    <actuatorfrc name="torque_{n}" actuator="{prefix}{n}"/>\n' for n in wheels]
+    base = f'objtype="xbody" objname="{prefix}base"'
+    out += [
+        f'    <framepos name="base_pos" {base}/>\n',
+        f'    <framequat name="base_quat" {base}/>\n',
+        f'    <framelinvel name="base_linvel" {base}/>\n',
+        f'    <gyro name="gyro" site="{prefix}imu"/>\n',
+        f'    <accelerometer name="acc" site="{prefix}imu"/>\n',
+        f'    <velocimeter name="vel" site="{prefix}imu"/>\n',
+        f'    <framepos name="mic_left" objtype="site" objname="{prefix}mic_left"/>\n',
+        f'    <framepos name="mic_right" objtype="site" objname="{prefix}mic_right"/>\n',
+    ]
+    out += [
+        f'    <framepos name="obstacle_pos_{i}" objtype="xbody" objname="obstacle_{i}"/>\n' for i in range(k)
+    ]
+    data = 'num="1" data="found force pos" reduce="netforce"'
+    out += [
+        f'    <contact name="hit_{i}" body2="obstacle_{i}" subtree1="{prefix}base" {data}/>\n'
+        for i in range(k)
+    ]
+    out += [f'    <contact name="bump_{n}" geom1="{prefix}{n}" body2="transients" {data}/>\n' for n in wheels]
+    out.append("  </sensor>\n")
 
 
 def _sensor_slices(w: int, k: int) -> SensorSlices:
@@ -236,7 +356,12 @@ def _world(
     wheels = robot.info.wheel_names
     base_id = model.body(prefix + "base").id
     ob_body = np.array([model.body(f"obstacle_{i}").id for i in range(len(obstacles))])
-    info = dataclasses.replace(robot.info, mass=float(model.body_subtreemass[base_id]))
+    shared = robot.info  # made once per unit (`robot_mjcf`): each world gets its own arrays
+    info = dataclasses.replace(
+        shared, mass=float(model.body_subtreemass[base_id]), wheel_radius=shared.wheel_radius.copy(),
+        wheel_pos_body=shared.wheel_pos_body.copy(), mic_pos_body=shared.mic_pos_body.copy(),
+        imu_pos_body=shared.imu_pos_body.copy(),
+    )  # fmt: skip
     return World(
         model=model,
         robot=dataclasses.replace(robot, info=info),
@@ -276,26 +401,27 @@ def _bumper_reach(model: mujoco.MjModel, prefix: str) -> float:
     return float(bumper.pos[0] + bumper.size[0])
 
 
-def _arena(scenario: Scenario) -> mjcf.RootElement:
-    arena = mjcf.RootElement(model=f"arena_{scenario.environment}")
-    arena.compiler.angle = "radian"
-    arena.option.timestep = PHYSICS_DT
-    arena.option.integrator = "implicitfast"
-    arena.option.cone = "elliptic"
-    arena.option.noslip_iterations = 0
-    arena.size.memory = "8M"
-    return arena
+@dataclass(frozen=True)
+class HeightField:
+    """A rough floor's heightfield: MJCF attributes and data."""
+
+    nrow: int
+    """Rows (along y)."""
+    ncol: int
+    """Columns (along x)."""
+    size: tuple[float, float, float, float]
+    """MJCF size: x and y half extents, top height, base depth, m."""
+    data: np.ndarray
+    """(nrow x ncol,) float32 elevations in 0 .. 1, for `MjModel.hfield_data`."""
 
 
-def _add_floor(arena: mjcf.RootElement, scenario: Scenario, surface: Surface) -> np.ndarray | None:
-    hx, hy = scenario.arena
-    friction = [surface.friction, 0.02, 0.002]
+def heightfield(scenario: Scenario) -> HeightField | None:
+    """The floor's heightfield: seeded Gaussian roughness of the surface's RMS height and correlation
+    length, 3 sigma each side of the mean in 0 .. 1 (None on a flat surface)."""
+    surface = SURFACES[scenario.surface]
     if surface.roughness <= 0:
-        arena.worldbody.add(
-            "geom", name="floor", type="plane", size=[hx + 1, hy + 1, 0.1], friction=friction,
-            solref=list(surface.solref), rgba=[0.55, 0.55, 0.5, 1],
-        )  # fmt: skip
         return None
+    hx, hy = scenario.arena
     spacing = max(0.1, 2 * max(hx, hy) / 400)
     ncol = int(np.ceil(2 * (hx + 1) / spacing)) + 1
     nrow = int(np.ceil(2 * (hy + 1) / spacing)) + 1
@@ -306,28 +432,19 @@ def _add_floor(arena: mjcf.RootElement, scenario: Scenario, surface: Surface) ->
     field *= surface.roughness / max(float(field.std()), 1e-12)
     top = 6 * surface.roughness
     data = np.clip((field + 3 * surface.roughness) / top, 0.0, 1.0)
-    arena.asset.add("hfield", name="ground", nrow=nrow, ncol=ncol, size=[hx + 1, hy + 1, top, 0.1])
-    arena.worldbody.add(
-        "geom", name="floor", type="hfield", hfield="ground", pos=[0, 0, -3 * surface.roughness],
-        friction=friction, solref=list(surface.solref), rgba=[0.45, 0.5, 0.35, 1],
-        contype=_HFIELD_BITS[0], conaffinity=_HFIELD_BITS[1],
-    )  # fmt: skip
-    arena.worldbody.add(
-        "geom", name="obstacle_floor", type="plane", size=[hx + 1, hy + 1, 0.1], friction=friction,
-        contype=_PLANE_BITS[0], conaffinity=_PLANE_BITS[1], rgba=[0, 0, 0, 0], group=3,
-    )  # fmt: skip
-    return np.asarray(data, dtype=np.float32).ravel()
+    return HeightField(nrow, ncol, (hx + 1, hy + 1, top, 0.1), np.asarray(data, dtype=np.float32).ravel())
 
 
-_HFIELD_BITS = (4, 4)
-_PLANE_BITS = (2, 2)
-_FREE_OBSTACLE_BITS = (2, 3)
-_ROBOT_AFFINITY = 5
+HFIELD_BITS = (4, 4)
+PLANE_BITS = (2, 2)
+FREE_OBSTACLE_BITS = (2, 3)
+ROBOT_AFFINITY = 5
 """Collision bits on rough floors: robot (1, 5) touches heightfield (4, 4), obstacles and transients;
 free obstacles (2, 3) touch the robot and the flat plane (2, 2) but not the heightfield."""
 
 
-def _border_walls(scenario: Scenario) -> list[Obstacle]:
+def border_walls(scenario: Scenario) -> list[Obstacle]:
+    """The arena's four border walls (obstacles after the scenario's)."""
     hx, hy = scenario.arena
     t = WALL_HALF_THICKNESS
     return [
@@ -338,7 +455,7 @@ def _border_walls(scenario: Scenario) -> list[Obstacle]:
     ]
 
 
-_COLORS: dict[str, list[float]] = {
+COLORS: dict[str, list[float]] = {
     "wall": [0.9, 0.9, 0.85, 1],
     "door": [0.55, 0.35, 0.2, 1],
     "curb": [0.6, 0.6, 0.6, 1],
@@ -348,80 +465,11 @@ _COLORS: dict[str, list[float]] = {
     "luggage": [0.2, 0.3, 0.6, 1],
     "pedestrian": [0.8, 0.6, 0.5, 1],
 }
+"""RGBA of each obstacle kind."""
 
 
-def _add_obstacle(arena: mjcf.RootElement, i: int, ob: Obstacle) -> mjcf.Element:
-    sx, sy, sz = ob.size
-    quat = [np.cos(ob.yaw / 2), 0.0, 0.0, np.sin(ob.yaw / 2)]
-    rgba = _COLORS[ob.kind]
-    if ob.kind == "pedestrian":
-        body = arena.worldbody.add("body", name=f"obstacle_{i}", mocap=True, pos=[ob.x, ob.y, sz], quat=quat)
-        radius = min(sx, sy)
-        body.add("geom", type="capsule", size=[radius, sz - radius], rgba=rgba, solref=[0.03, 1.0])
-        return body
-    body = arena.worldbody.add("body", name=f"obstacle_{i}", pos=[ob.x, ob.y, sz], quat=quat)
-    if ob.kind in OBSTACLE_MASS:
-        body.add("freejoint")
-        body.add(
-            "geom",
-            type="box",
-            size=[sx, sy, sz],
-            mass=OBSTACLE_MASS[ob.kind],
-            rgba=rgba,
-            friction=[0.5, 0.01, 0.001],
-        )
-    elif ob.kind == "chair":
-        leg = 0.012
-        for dx in (-1, 1):
-            for dy in (-1, 1):
-                body.add(
-                    "geom", type="capsule", size=[leg, sz - 0.02],
-                    pos=[dx * (sx - leg), dy * (sy - leg), -0.02], rgba=rgba,
-                )  # fmt: skip
-        body.add("geom", type="box", size=[sx, sy, 0.02], pos=[0, 0, sz - 0.02], rgba=rgba)
-    else:
-        body.add("geom", type="box", size=[sx, sy, sz], rgba=rgba)
-    return body
-
-
-def _add_transient(
-    parent: mjcf.Element, i: int, kind: str, x: float, y: float, yaw: float, length: float
-) -> None:
-    h = TRANSIENT_HEIGHT[kind]
-    quat = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
-    name = f"transient_{i}"
-    rgba = [0.3, 0.3, 0.3, 1]
-    if kind in ("seam", "threshold"):  # a low strip across the path; a threshold is wider
-        half_width = 0.01 if kind == "seam" else 0.04
-        parent.add(
-            "geom",
-            name=name,
-            type="box",
-            size=[length / 2, half_width, h / 2],
-            pos=[x, y, h / 2],
-            quat=quat,
-            rgba=rgba,
-        )
-    elif kind == "cable":
-        half = length / 2
-        c, s = np.cos(yaw), np.sin(yaw)
-        ends = [x - c * half, y - s * half, h / 2, x + c * half, y + s * half, h / 2]
-        parent.add("geom", name=name, type="capsule", size=[h / 2], fromto=ends, rgba=[0.1, 0.1, 0.1, 1])
-    elif kind == "kerb_ramp":
-        # A plate tilted about its long axis: rises from the floor to `h` over 0.3 m, then drops.
-        pitch = float(np.arctan2(h, 0.3))
-        q_yaw = np.array(quat)
-        q_tilt = np.array([np.cos(pitch / 2), np.sin(pitch / 2), 0.0, 0.0])
-        q = _quat_mul(q_yaw, q_tilt)
-        parent.add(
-            "geom", name=name, type="box", size=[length / 2, 0.15 / np.cos(pitch), 0.004],
-            pos=[x, y, h / 2 - 0.004], quat=list(q), rgba=[0.5, 0.5, 0.45, 1],
-        )  # fmt: skip
-    else:
-        parent.add("geom", name=name, type="sphere", size=[h], pos=[x, y, 0.0], rgba=[0.4, 0.35, 0.3, 1])
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The quaternion product a b (w, x, y, z)."""
     w1, x1, y1, z1 = a
     w2, x2, y2, z2 = b
     return np.array(

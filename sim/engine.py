@@ -123,6 +123,7 @@ class Engine:
         self.model.geom_pos[wheel_geom] = self._geom_pos0
         self.model.geom_sameframe[wheel_geom] = self._sameframe0
         self._flats = [f for f in self.forcings if f.record.kind == "flat_spot"]
+        self._fault_wrenches = True  # the control's wrench columns may hold a period's (zeroed when unused)
         for forcing in self.forcings:
             if forcing.record.kind in ("out_of_round", "flat_spot"):  # its shape moves in the wheel's frame
                 self.model.geom_sameframe[wheel_geom[forcing.wheel]] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE
@@ -248,9 +249,20 @@ class Engine:
 
     def _apply_faults(self, control: np.ndarray, times: np.ndarray) -> None:
         """Fault wrenches for the period: hub forces act on the chassis at the wheel centre (the tyre and
-        ground take the wheel's share), motor torques on the wheel joint (reacted by the chassis)."""
+        ground take the wheel's share), motor torques on the wheel joint (reacted by the chassis).
+
+        A period that no fault's window [onset, onset + duration) reaches (before the onset, after the end)
+        gets zero wrenches without computing them (what they would sum to, +0.0 in every entry)."""
         k = len(times)
         m = self.model
+        first, last = float(times[0]), float(times[-1])
+        if all(last < f.record.onset or first >= f.record.onset + f.record.duration for f in self.forcings):
+            if self._fault_wrenches:
+                control[:, m.nu : m.nu + m.nv] = 0.0
+                control[:, self._xfrc0 : self._mocap0] = 0.0
+                self._fault_wrenches = False
+            return
+        self._fault_wrenches = True
         sl = self.world.sensors
         sd = self.sensordata
         quat = sd[sl.base_quat : sl.base_quat + 4]
@@ -277,7 +289,6 @@ class Engine:
             xf[:, base, :3] += wrench[:, :3]
             xf[:, base, 3:] += wrench[:, 3:] + _cross(hub - com, wrench[:, :3])
             control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
-
 
     def _apply_geometry(self) -> None:
         """An out-of-round wheel: its collision shape moved off the axle by the runout, towards the defect's

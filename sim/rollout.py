@@ -208,7 +208,7 @@ def assemble_trace(
         time, cols(sl.acc, 3), cols(sl.base_angvel, 3), cols(sl.vel, 3), scenario.sensors, scenario.seed
     )
     ob_pos = cols(sl.obstacle_pos, 3 * k).reshape(n, k, 3)
-    ob_vel = np.gradient(ob_pos, dt, axis=0) if n > 1 else np.zeros_like(ob_pos)
+    ob_vel = _velocities(ob_pos, dt, world.obstacle_free | (world.obstacle_mocap >= 0))
     found, hits = contact(sl.obstacle_contact, k)
     contacts, event_runs = contact_events(
         found, hits[:, :, 1:4], hits[:, :, 4:7], base_linvel, ob_vel, world.obstacles, dt
@@ -252,3 +252,14 @@ def assemble_trace(
         sub_kind=sub,
         label_wheel=wheel,
     )
+
+
+def _velocities(pos: np.ndarray, dt: float, movable: np.ndarray) -> np.ndarray:
+    """`np.gradient(pos, dt, axis=0)` of (n, K, 3) obstacle positions, computed for the `movable` (K,)
+    obstacles (free bodies, pedestrians) only: a fixed body's position is the same every step, and
+    np.gradient's differences of equal values are +0.0, what the others get."""
+    vel = np.zeros_like(pos)
+    moving = np.flatnonzero(movable)
+    if len(pos) > 1 and len(moving):
+        vel[:, moving] = np.gradient(pos[:, moving], dt, axis=0)
+    return vel

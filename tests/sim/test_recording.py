@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from sim import scenario_presets
-from sim.engine import Engine
-from sim.rollout import RECORD_PERIODS, assemble_trace, run_route
+from sim.engine import CONTROL_STEPS, Engine
+from sim.rollout import RECORD_PERIODS, _velocities, assemble_trace, run_route
 from sim.trace import _flatten
 from sim.world import build_world
 
@@ -58,3 +58,35 @@ def test_wheel_commands_are_the_numpy_formula_bit_for_bit() -> None:
                 expected[forcing.wheel] *= forcing.speed_factor(engine.time)
             got = np.array(engine.wheel_commands(v, w))
             assert np.array_equal(got, expected) and np.array_equal(np.signbit(got), np.signbit(expected))
+
+
+@pytest.mark.parametrize("preset", ["collision_box", "collision_pedestrian", "collision_wall"])
+def test_obstacle_velocities_are_np_gradient_bit_for_bit(preset: str) -> None:
+    """Velocities are differentiated for the free and mocap obstacles only: a fixed one's recorded position
+    never changes, so np.gradient's +0.0 is what it gets."""
+    scenario = scenario_presets()[preset](0)
+    world = build_world(scenario)
+    engine = Engine(world, scenario)
+    record = run_route(engine, scenario)
+    k = len(world.obstacles)
+    pos = record.cols(world.sensors.obstacle_pos, 3 * k).reshape(record.n, k, 3)
+    movable = world.obstacle_free | (world.obstacle_mocap >= 0)
+    assert movable.any() and not movable.all()
+    expected = np.gradient(pos, engine.dt, axis=0)
+    assert _velocities(pos, engine.dt, movable).tobytes() == expected.tobytes()
+
+
+def test_faults_outside_their_window_leave_zero_wrenches() -> None:
+    """Periods before a fault's onset skip its forcing; the wrenches are the +0.0 it would have summed to."""
+    scenario = scenario_presets()["fault_loose_wheel"](0)
+    engine = Engine(build_world(scenario), scenario)
+    onset = engine.forcings[0].record.onset
+    out = np.empty((CONTROL_STEPS, engine.model.nsensordata))
+    wrenches = slice(engine.model.nu, engine.ncontrol)
+    while engine.time + CONTROL_STEPS * engine.dt < onset:
+        engine.step(engine.wheel_commands(0.5, 0.0), out)
+        assert not np.signbit(engine._control[0, :, wrenches]).any()
+        assert not engine._control[0, :, wrenches].any()
+    while engine.time < onset + 1.0:
+        engine.step(engine.wheel_commands(0.5, 0.0), out)
+    assert engine._control[0, :, wrenches].any()  # the fault pushes once it acts

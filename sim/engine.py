@@ -77,6 +77,7 @@ class Engine:
         self._xfrc0 = m.nu + m.nv
         self._mocap0 = m.nu + m.nv + 6 * m.nbody
         self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
+        self._steps = self.dt * np.arange(CONTROL_STEPS)  # step offsets in a period, s
         self._wheel_control = self._control[0, :, : m.nu]
         self._runner = mj_rollout.Rollout(nthread=0)
         self._models = [m]
@@ -265,17 +266,12 @@ class Engine:
         self._fault_wrenches = True
         sl = self.world.sensors
         sd = self.sensordata
-        quat = sd[sl.base_quat : sl.base_quat + 4]
-        forward, lateral = _axes(quat)
-        up = _cross(forward, lateral)
-        rot = np.stack([forward, lateral, up], axis=1)
-        base_pos = sd[sl.base_pos : sl.base_pos + 3]
-        com = base_pos + rot @ self._base_ipos
-        control[:, m.nu : m.nu + m.nv] = 0.0
+        forward, lateral = _axes(sd[sl.base_quat : sl.base_quat + 4])
+        control[:, m.nu : self._mocap0] = 0.0  # the joint forces, then the body wrenches
         xf = control[:, self._xfrc0 : self._mocap0].reshape(k, m.nbody, 6)
-        xf[:] = 0.0
-        steps = self.dt * np.arange(k)
+        steps = self._steps[:k]
         base = self.world.base_body
+        frame: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # rotation, base position, COM
         for forcing in self.forcings:
             wi = forcing.wheel
             angle = float(sd[sl.wheel_angle + wi])
@@ -285,10 +281,19 @@ class Engine:
             wrench = np.zeros((k, 6))
             qf = np.zeros(k)
             forcing.apply(times, theta, omega, lateral, torque, wrench, qf, self.dt)
-            hub = base_pos + rot @ self.world.robot.info.wheel_pos_body[wi]
-            xf[:, base, :3] += wrench[:, :3]
-            xf[:, base, 3:] += wrench[:, 3:] + _cross(hub - com, wrench[:, :3])
-            control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
+            # Adding an all-zero wrench or torque is skipped: the columns start at +0.0 and sums that start
+            # there never make -0.0, so adding +-0.0 would leave every entry as it is.
+            if wrench.any():
+                if frame is None:
+                    rot = np.stack([forward, lateral, _cross(forward, lateral)], axis=1)
+                    base_pos = sd[sl.base_pos : sl.base_pos + 3]
+                    frame = rot, base_pos, base_pos + rot @ self._base_ipos
+                rot, base_pos, com = frame
+                hub = base_pos + rot @ self.world.robot.info.wheel_pos_body[wi]
+                xf[:, base, :3] += wrench[:, :3]
+                xf[:, base, 3:] += wrench[:, 3:] + _cross(hub - com, wrench[:, :3])
+            if qf.any():
+                control[:, m.nu + int(self.world.wheel_dof[wi])] += qf
 
     def _apply_geometry(self) -> None:
         """An out-of-round wheel: its collision shape moved off the axle by the runout, towards the defect's

@@ -281,14 +281,16 @@ class FaultForcing:
                 self.strike_impulse.append(strike[hits])
         elif kind == "bearing":
             hits = on & _crossed(theta - f.phase, omega * dt, f.defect_order)
-            self._strike(xfrc, t, hits, strike_impulse(f, np.full(len(t), rim), corner, radius), dt)
+            if hits.any():
+                self._strike(xfrc, t, hits, strike_impulse(f, np.full(len(t), rim), corner, radius), dt)
         elif kind == "loose_wheel":
             wobble = np.sin(theta - f.phase)
             force = on * TYRE_CORNERING * f.size / HUB_SPAN * min(rim / NOMINAL_RIM_SPEED, 1.0) * wobble
             xfrc[:, :3] += force[:, None] * lateral
             rate = RATTLE_RATE * rim / NOMINAL_RIM_SPEED * (1.0 + np.cos(theta - f.phase))
             hits = on & (self.rng.random(len(t)) < rate * dt)
-            self._strike(xfrc, t, hits, strike_impulse(f, np.zeros(len(t)), corner, radius), dt)
+            if hits.any():
+                self._strike(xfrc, t, hits, strike_impulse(f, np.zeros(len(t)), corner, radius), dt)
         elif kind == "motor_degradation":
             s = f.severity
             ripple = np.sin(self.robot.gear_ratio * theta)

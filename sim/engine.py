@@ -105,6 +105,7 @@ class Engine:
         )
         self._has_peds = len(self.ped_index) > 0
         self.state = np.zeros(self.nstate)
+        self._state0 = self.state[None]  # the rollout's (1, nstate) initial state: a view of `state`
         self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
         self.reset()
@@ -159,19 +160,19 @@ class Engine:
             control = self._control[:, :k]
             self._wheel_control[:k] = wheel_cmd
         if self.forcings:
-            self._apply_faults(control[0], self.time + self.dt * np.arange(k))
+            self._apply_faults(control[0], self.time + self._steps[:k])
             self._apply_geometry()
         if self._has_peds:
             i0 = round(self.time / self.dt)
             self._ensure_ped_track(i0 + k)
             self._ped_view(control[0])[:, self.ped_mocap, :] = self._ped_track[i0 : i0 + k]
-        if self._flat_near(k):
+        if self._flats and self._flat_near(k):
             self._step_flat(control, out)
         else:
             # The rollout starts from `state` with a zero solver warm start (as every period has), and
             # leaves the period's last step in `data`, whose full state is the next period's start.
             self._runner.rollout(
-                self._models, self._datas, self.state[None], control, control_spec=_CONTROL_SPEC,
+                self._models, self._datas, self._state0, control, control_spec=_CONTROL_SPEC,
                 skip_checks=True, nstep=k, sensordata=out[None],
             )  # fmt: skip
             mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)

@@ -227,3 +227,26 @@ def test_severity_bins_cover_zero_to_one_and_one_belongs_to_the_top_bin() -> Non
     assert oracle.severity_bin(0.5) == "0.5-0.75" and oracle.severity_bin(1.0) == "0.75-1"
     with pytest.raises(ValueError, match="severity"):
         oracle.severity_bin(1.2)
+
+
+def test_the_oracle_reads_one_column_per_indicator_of_each_kind() -> None:
+    rng = np.random.default_rng(0)
+    seconds = 6.0
+    m, n = int(seconds * 200), int(seconds * 4410)
+    angle = np.outer(np.arange(m) / 200.0, 2 * np.pi * np.array([1.0, 1.1, 0.9, 1.2]))
+    sig = oracle.Signals(rng.normal(size=(n, 2)), rng.normal(size=(m, 7)), angle)
+    starts = np.array([0.0, 1.5, 3.5])
+    for kind, names in oracle.INDICATORS.items():
+        views = [oracle.View(kind, w, 0.3, 3.0 if kind == "bearing" else 1.0, 30.0) for w in (0, 2)]
+        feats = oracle.window_features(sig, starts, views)
+        assert [f.shape for f in feats] == [(3, len(names))] * 2, kind
+        assert all(np.isfinite(f).all() for f in feats)
+
+
+def test_the_oracle_sums_each_indicators_tail_evidence() -> None:
+    nominal = np.stack([np.arange(99.0), np.arange(99.0)[::-1]], axis=1)  # 99 rows, two indicators
+    baseline = oracle.Baseline.fit(nominal)
+    far, median = np.array([[500.0, 500.0]]), np.array([[49.0, 500.0]])
+    assert baseline.score(far)[0] == pytest.approx(2 * math.log10(100))  # beyond every nominal row, twice
+    # the first indicator at its median (50 of 99 nominal rows at or above it): its tail is 51 / 100
+    assert baseline.score(median)[0] == pytest.approx(math.log10(100) - math.log10(0.51))

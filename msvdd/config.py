@@ -8,7 +8,7 @@ from typing import Any, Self
 
 from msvdd.frontend import AUDIO_FRONTENDS, IMU_INPUTS
 from msvdd.mcd import MCDError, support_size
-from msvdd.network import FUSIONS
+from msvdd.network import FUSIONS, POOLINGS
 
 SVDD_FITS = ("batch", "frozen")
 """Allowed `svdd_fit` values: how mu and Sigma of the training loss are estimated."""
@@ -33,6 +33,10 @@ class MSVDDConfig:
     """Dimension of the fused latent space where the ellipsoid lives."""
     fusion: str = "cross_attention"
     """Fusion: "cross_attention" (paper), or the ablation's "concat", "sum", "product"."""
+    pooling: str = "mean+max"
+    """How the fusion pools a token sequence before projecting it to z: "mean+max" (their sum per feature: a
+    max keeps a short transient that a mean over the tokens dilutes) or "stats" (statistics pooling: mean,
+    standard deviation and max over the tokens side by side, so that level, rhythm and peak stay apart)."""
     audio_frontend: str = "waveform"
     """Audio input: "waveform" (paper: raw-waveform CRNN) or "logmel" (spectrogram 2-D CNN); see frontend."""
     imu_input: str = "z"
@@ -112,6 +116,7 @@ class MSVDDConfig:
         _check(self.d >= 1, "d", self.d, ">= 1")
         _check(self.s >= 1, "s", self.s, ">= 1")
         _check(self.fusion in FUSIONS, "fusion", self.fusion, " | ".join(FUSIONS))
+        _check(self.pooling in POOLINGS, "pooling", self.pooling, " | ".join(POOLINGS))
         _check(
             self.audio_frontend in AUDIO_FRONTENDS,
             "audio_frontend",

@@ -10,8 +10,9 @@ Shapes (defaults, d = 32, s = 32):
   layers) -> (N, 50, d) tokens.
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
   (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
-  (mean + max over tokens: a mean alone dilutes a 30 ms impact among 49 tokens), summed and projected
-  to s. The ablation variants concatenate, add or multiply the pooled encoder features.
+  (`pool`: mean + max over tokens, a mean alone dilutes a 30 ms impact among 49 tokens; or statistics
+  pooling, mean, std and max side by side), summed and projected to s. The ablation variants concatenate,
+  add or multiply the pooled encoder features.
 - `AudioDecoder` (six transposed convolutions), `LogMelDecoder` (a per-frame MLP) and `ImuDecoder` (LSTM
   layers) reconstruct the inputs from the encoders' token sequences.
 """
@@ -30,6 +31,8 @@ from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_N_MELS, check_frontend
 
 FUSIONS = ("cross_attention", "concat", "sum", "product")
 """Fusion variants: the paper's cross-attention and the three ablation alternatives."""
+POOLINGS = ("mean+max", "stats")
+"""How a token sequence is pooled before the projection to z (`pool`)."""
 
 AUDIO_STRIDES = (5, 3, 3, 2, 2, 1)
 """Stride of each of the six audio convolutions; their product (180) is the audio samples per token."""
@@ -55,6 +58,8 @@ class NetConfig(Protocol):
     @property
     def fusion(self) -> str: ...
     @property
+    def pooling(self) -> str: ...
+    @property
     def use_audio(self) -> bool: ...
     @property
     def use_imu(self) -> bool: ...
@@ -72,9 +77,17 @@ def _conv_padding(stride: int) -> tuple[int, int]:
     return stride + 2 * pad, pad
 
 
-def _pool(tokens: torch.Tensor) -> torch.Tensor:
-    """(N, T, d) -> (N, d): mean + max over the tokens (the max keeps short transients such as impacts)."""
+def pool(tokens: torch.Tensor, kind: str = "mean+max") -> torch.Tensor:
+    """(N, T, d) -> (N, d) mean + max over the tokens (the max keeps short transients such as impacts), or,
+    `kind` "stats", (N, 3 d) their mean, standard deviation and max side by side (statistics pooling)."""
+    if kind == "stats":
+        return torch.cat([tokens.mean(dim=1), tokens.std(dim=1), tokens.amax(dim=1)], dim=1)
     return tokens.mean(dim=1) + tokens.amax(dim=1)
+
+
+def pooled_width(d: int, kind: str) -> int:
+    """Width of `pool`'s output for d-wide tokens."""
+    return 3 * d if kind == "stats" else d
 
 
 class AudioEncoder(nn.Module):
@@ -230,21 +243,32 @@ class Fusion(nn.Module):
     With only one modality present, the pooled tokens of that modality are projected to s.
     """
 
-    def __init__(self, d: int, s: int, kind: str, use_audio: bool = True, use_imu: bool = True) -> None:
+    def __init__(
+        self,
+        d: int,
+        s: int,
+        kind: str,
+        use_audio: bool = True,
+        use_imu: bool = True,
+        pooling: str = "mean+max",
+    ) -> None:
         super().__init__()
         if kind not in FUSIONS:
             raise ValueError(f"fusion {kind!r}; allowed: {', '.join(FUSIONS)}")
+        if pooling not in POOLINGS:
+            raise ValueError(f"pooling {pooling!r}; allowed: {', '.join(POOLINGS)}")
         if not (use_audio or use_imu):
             raise ValueError("use_audio and use_imu are both False; at least one modality is needed")
         self.kind = kind
+        self.pooling = pooling
         self.both = use_audio and use_imu
         self.audio_queries_imu: CrossAttentionBlock | None = None
         self.imu_queries_audio: CrossAttentionBlock | None = None
         if self.both and kind == "cross_attention":
             self.audio_queries_imu = CrossAttentionBlock(d)
             self.imu_queries_audio = CrossAttentionBlock(d)
-        width = 2 * d if (self.both and kind == "concat") else d
-        self.project = nn.Linear(width, s)
+        width = pooled_width(d, pooling)
+        self.project = nn.Linear(2 * width if (self.both and kind == "concat") else width, s)
 
     def forward(self, audio_tokens: torch.Tensor | None, imu_tokens: torch.Tensor | None) -> FusionOutput:
         """Token sequences (N, T, d) (None for an absent modality) -> `FusionOutput`."""
@@ -252,12 +276,12 @@ class Fusion(nn.Module):
             tokens = audio_tokens if audio_tokens is not None else imu_tokens
             if tokens is None:
                 raise ValueError("Fusion needs at least one token sequence")
-            return FusionOutput(z=self.project(_pool(tokens)), fused_a=None, fused_i=None)
+            return FusionOutput(z=self.project(pool(tokens, self.pooling)), fused_a=None, fused_i=None)
         if self.audio_queries_imu is not None and self.imu_queries_audio is not None:
-            z_ia = _pool(self.audio_queries_imu(audio_tokens, imu_tokens))
-            z_ai = _pool(self.imu_queries_audio(imu_tokens, audio_tokens))
+            z_ia = pool(self.audio_queries_imu(audio_tokens, imu_tokens), self.pooling)
+            z_ai = pool(self.imu_queries_audio(imu_tokens, audio_tokens), self.pooling)
             return FusionOutput(z=self.project(z_ia + z_ai), fused_a=z_ia, fused_i=z_ai)
-        z_a, z_i = _pool(audio_tokens), _pool(imu_tokens)
+        z_a, z_i = pool(audio_tokens, self.pooling), pool(imu_tokens, self.pooling)
         if self.kind == "concat":
             fused = torch.cat([z_a, z_i], dim=1)
         elif self.kind == "sum":
@@ -278,13 +302,13 @@ class NetOutput:
     imu_tokens: torch.Tensor | None
     """(N, T_I, d) IMU encoder tokens."""
     z_a: torch.Tensor | None
-    """(N, d) pooled (mean + max) audio encoder feature."""
+    """(N, d) pooled audio encoder feature (`pool`; (N, 3 d) with statistics pooling)."""
     z_i: torch.Tensor | None
-    """(N, d) pooled (mean + max) IMU encoder feature."""
+    """(N, d) pooled IMU encoder feature (likewise)."""
     fused_a: torch.Tensor | None
-    """(N, d) pooled audio branch after cross-attention (z_IA)."""
+    """(N, d) pooled audio branch after cross-attention (z_IA; likewise)."""
     fused_i: torch.Tensor | None
-    """(N, d) pooled IMU branch after cross-attention (z_AI)."""
+    """(N, d) pooled IMU branch after cross-attention (z_AI; likewise)."""
     audio_rec: torch.Tensor | None
     """Reconstructed audio input: (N, 8820, 2) waveform or (N, 2, 67, 32) log-mel."""
     imu_rec: torch.Tensor | None
@@ -307,7 +331,7 @@ class FusionNet(nn.Module):
         if config.use_audio:
             self.audio_encoder = LogMelEncoder(d) if logmel else AudioEncoder(d)
         self.imu_encoder = ImuEncoder(d, imu_channels) if config.use_imu else None
-        self.fusion = Fusion(d, s, config.fusion, config.use_audio, config.use_imu)
+        self.fusion = Fusion(d, s, config.fusion, config.use_audio, config.use_imu, config.pooling)
         rec = config.use_reconstruction
         self.audio_decoder: nn.Module | None = None
         if rec and config.use_audio:
@@ -325,8 +349,8 @@ class FusionNet(nn.Module):
             z=fused.z,
             audio_tokens=a_tok,
             imu_tokens=i_tok,
-            z_a=None if a_tok is None else _pool(a_tok),
-            z_i=None if i_tok is None else _pool(i_tok),
+            z_a=None if a_tok is None else pool(a_tok, self.fusion.pooling),
+            z_i=None if i_tok is None else pool(i_tok, self.fusion.pooling),
             fused_a=fused.fused_a,
             fused_i=fused.fused_i,
             audio_rec=a_rec,

@@ -7,7 +7,7 @@ import torch
 
 from msvdd.config import MSVDDConfig
 from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_FRAMES, LOGMEL_N_MELS
-from msvdd.network import AUDIO_TOKENS, IMU_TOKENS, CrossAttentionBlock, Fusion, FusionNet
+from msvdd.network import AUDIO_TOKENS, IMU_TOKENS, CrossAttentionBlock, Fusion, FusionNet, pool
 
 
 def _inputs(n: int = 3, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -109,3 +109,19 @@ def test_log_mel_tokens_are_causal_in_time_only_through_the_lstm() -> None:
     a, b = net.audio_encoder(x), net.audio_encoder(y)
     torch.testing.assert_close(a[:, : LOGMEL_FRAMES - 4], b[:, : LOGMEL_FRAMES - 4])
     assert not torch.allclose(a[:, -1], b[:, -1])
+
+
+def test_statistics_pooling_keeps_mean_spread_and_peak_apart() -> None:
+    tokens = torch.tensor([[[1.0, -2.0], [3.0, -2.0], [5.0, -2.0]]])  # (1, 3 tokens, d = 2)
+    stats = pool(tokens, "stats")
+    assert torch.allclose(stats, torch.tensor([[3.0, -2.0, 2.0, 0.0, 5.0, -2.0]]))  # mean | std | max
+    assert torch.allclose(pool(tokens), torch.tensor([[8.0, -4.0]]))  # mean + max
+    # two sequences with the same mean and peak but another spread: only statistics pooling tells them apart
+    other = torch.tensor([[[2.0, -2.0], [2.0, -2.0], [5.0, -2.0]]])
+    assert torch.allclose(pool(other), pool(tokens))
+    assert torch.allclose(pool(other, "stats")[0, 2], torch.tensor(3.0).sqrt())
+    for fusion in ("cross_attention", "concat", "sum", "product"):
+        out = FusionNet(MSVDDConfig.smoke(d=8, s=6, fusion=fusion, pooling="stats"))(*_inputs())
+        assert out.z.shape == (3, 6) and out.z_a is not None and out.z_a.shape == (3, 24)
+    with pytest.raises(ValueError, match="pooling"):
+        MSVDDConfig.smoke(pooling="median")

@@ -2,7 +2,8 @@
 
 `run_route` records through a cache-sized buffer moved block by block, keeps contact force and centroid only
 in blocks with a contact and builds the wheel commands as Python floats; each must give exactly what one
-(n, nsensordata) array of every step and the numpy formula give.
+(n, nsensordata) array of every step and the numpy formula give. Likewise the shortcuts in the faults'
+forcing, the obstacle velocities and the IMU's decimation.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import pytest
 
 from sim import scenario_presets
 from sim.engine import CONTROL_STEPS, Engine
+from sim.imu import decimate
 from sim.rollout import RECORD_PERIODS, _velocities, assemble_trace, run_route
 from sim.trace import _flatten
 from sim.world import build_world
@@ -90,3 +92,18 @@ def test_faults_outside_their_window_leave_zero_wrenches() -> None:
     while engine.time < onset + 1.0:
         engine.step(engine.wheel_commands(0.5, 0.0), out)
     assert engine._control[0, :, wrenches].any()  # the fault pushes once it acts
+
+
+def test_two_step_decimation_is_numpy_mean_bit_for_bit() -> None:
+    """`decimate`'s (a + b + 0.0) / 2 against numpy's mean, signed zeros, NaNs, infinities and subnormals
+    included, on contiguous and strided columns."""
+    special = [0.0, -0.0, 1.0, -1.0, 5e-324, -5e-324, np.inf, -np.inf, np.nan, -np.nan, 1e308, -1e308, -2.2]
+    pairs = np.array([[a, b] for a in special for b in special]).ravel()
+    columns = np.stack([pairs, pairs[::-1], -pairs], axis=1)
+    noise = np.random.default_rng(0).normal(size=(4001, 3))
+    with np.errstate(all="ignore"):
+        for x in (pairs, pairs[:-1], columns, columns[:, 2], noise, noise[:, 1]):
+            n = x.shape[0] // 2 * 2
+            expected = x[:n].reshape(n // 2, 2, *x.shape[1:]).mean(axis=1)
+            got = decimate(x, 2)
+            assert got.shape == expected.shape and got.tobytes() == expected.tobytes()

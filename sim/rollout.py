@@ -48,9 +48,10 @@ class Recording:
     `assemble_trace` takes apart), so there is no (n, nsensordata) array and no strided copy of it at the
     end. The contact sensors (`contact`: per obstacle or wheel, found count, net force, centroid) are kept
     densely for the found counts only; force and centroid are copied for the blocks (the buffer's
-    length) in which a contact was found and stay 0 elsewhere. `contact_events` and `transient_events`
-    read them only inside runs of found contacts (gaps shorter than `MERGE_GAP` merged), which never reach
-    a block without one, so the events are the same as from the full arrays.
+    length) in which a contact was found and stay 0 elsewhere (their array is made at the first such block:
+    a sensor that never finds a contact reads as a read-only view of zeros). `contact_events` and
+    `transient_events` read them only inside runs of found contacts (gaps shorter than `MERGE_GAP` merged),
+    which never reach a block without one, so the events are the same as from the full arrays.
     """
 
     def __init__(self, n: int, nsensordata: int, sl: SensorSlices, w: int, k: int, periods: int) -> None:
@@ -79,14 +80,18 @@ class Recording:
         self.done = 0
         """Steps moved from `buffer` to the arrays."""
         self._signals = {start: np.empty((n, width)) for start, width in groups}
-        self._contacts = {
-            start: (np.empty((n, count)), np.zeros((n, 7 * count))) for start, count in contacts
-        }
+        self._found = {start: np.empty((n, count)) for start, count in contacts}
+        self._values: dict[int, np.ndarray] = {}  # made at the first block with a contact (`move`)
         buffer = self.buffer
         self._moves = [(self._signals[start], buffer[:, start : start + width]) for start, width in groups]
         self._contact_moves = [
-            (found, values, buffer[:, start : start + 7 * count : 7], buffer[:, start : start + 7 * count])
-            for (start, count), (found, values) in zip(contacts, self._contacts.values(), strict=True)
+            (
+                start,
+                self._found[start],
+                buffer[:, start : start + 7 * count : 7],
+                buffer[:, start : start + 7 * count],
+            )
+            for start, count in contacts
         ]
 
     def move(self, stop: int) -> None:
@@ -94,10 +99,13 @@ class Recording:
         start, rows = self.done, stop - self.done
         for array, column in self._moves:
             array[start:stop] = column[:rows]
-        for found, values, found_column, value_columns in self._contact_moves:
+        for at, found, found_column, value_columns in self._contact_moves:
             block = found[start:stop]
             block[:] = found_column[:rows]
             if block.any():  # found counts are whole numbers >= 0
+                values = self._values.get(at)
+                if values is None:
+                    values = self._values[at] = np.zeros((self.n, value_columns.shape[1]))
                 values[start:stop] = value_columns[:rows]
         self.done = stop
 
@@ -111,9 +119,12 @@ class Recording:
     def contact(self, start: int, count: int) -> tuple[np.ndarray, np.ndarray]:
         """The `count` contact sensors at sensordata[start]: found counts (n, count) and (n, count, 7) values
         (found, force, centroid; force and centroid only in blocks with a contact, see the class)."""
-        found, values = self._contacts[start]
+        found = self._found[start]
         if found.shape[1] != count:
             raise ValueError(f"no {count} contact sensors at sensordata[{start}]")
+        values = self._values.get(start)
+        if values is None:  # no contact in the episode: zeros, as the copied blocks would have left
+            return found, np.broadcast_to(np.zeros(()), (self.n, count, 7))
         return found, values.reshape(self.n, count, 7)
 
 
@@ -160,7 +171,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
         x, y, _, qw, qx, qy, qz = pose_now.tolist()
         pose = (x, y, yaw_of((qw, qx, qy, qz)))
         contact = False
-        if found is not None and found.any():  # contact counts are whole numbers >= 0: any() is any(> 0)
+        if found is not None and np.count_nonzero(found):  # counts are whole numbers >= 0: any contact
             contact = True
             for ob in np.flatnonzero(found.any(axis=0) & live):
                 engine.step_back(int(ob), pose)  # a pedestrian who is bumped steps back and stands

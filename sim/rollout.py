@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import mmap
+
 import numpy as np
 
 from sim.driving import RouteController
@@ -105,7 +107,7 @@ class Recording:
             if block.any():  # found counts are whole numbers >= 0
                 values = self._values.get(at)
                 if values is None:
-                    values = self._values[at] = np.zeros((self.n, value_columns.shape[1]))
+                    values = self._values[at] = _untouched_zeros((self.n, value_columns.shape[1]))
                 values[start:stop] = value_columns[:rows]
         self.done = stop
 
@@ -269,8 +271,21 @@ def _velocities(pos: np.ndarray, dt: float, movable: np.ndarray) -> np.ndarray:
     """`np.gradient(pos, dt, axis=0)` of (n, K, 3) obstacle positions, computed for the `movable` (K,)
     obstacles (free bodies, pedestrians) only: a fixed body's position is the same every step, and
     np.gradient's differences of equal values are +0.0, what the others get."""
-    vel = np.zeros_like(pos)
+    vel = _untouched_zeros(pos.shape)
     moving = np.flatnonzero(movable)
     if len(pos) > 1 and len(moving):
         vel[:, moving] = np.gradient(pos[:, moving], dt, axis=0)
     return vel
+
+
+def _untouched_zeros(shape: tuple[int, ...]) -> np.ndarray:
+    """A float64 array of zeros in a private anonymous memory mapping: the kernel zero-fills each page when
+    it is first touched, so the parts never written cost neither time nor memory (np.zeros' calloc fills
+    memory it reuses from the heap, all of it, at once). Small arrays, and systems without anonymous
+    mappings, get np.zeros."""
+    count = int(np.prod(shape))
+    flags = getattr(mmap, "MAP_PRIVATE", 0) | getattr(mmap, "MAP_ANONYMOUS", 0)
+    if count * 8 < mmap.PAGESIZE * 64 or not hasattr(mmap, "MAP_ANONYMOUS"):
+        return np.zeros(shape)
+    memory = mmap.mmap(-1, count * 8, flags=flags)
+    return np.frombuffer(memory, dtype=np.float64, count=count).reshape(shape)

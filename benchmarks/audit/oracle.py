@@ -25,14 +25,14 @@ Which indicators each kind reads was chosen on dev datasets (seeds never audited
 evidence is at chance for a kind only adds nominal extremes to its score. On dev, the chassis did not carry a
 bearing's ball strikes (its IMU strike indicator at chance, the audio's far above) nor a flat's
 once-per-revolution motion (the rigid four-wheel chassis rests on three wheels while one rolls over its
-flat), and an out-of-round wheel did not modulate the rolling sound. A worn pair's mesh line alone was
-stronger than with its sidebands and the IMU's shaft line, but it also told the same episodes re-simulated
-without their fault from nominal ones (the control below), so worn gears keep all four.
+flat), and an out-of-round wheel did not modulate the rolling sound; a worn pair's mesh line alone was no
+stronger than with its sidebands and the IMU's shaft line.
 
 A fault window is looked at through its faulty wheel at its defect's angle and order; a nominal window
 through every wheel at `NOMINAL_PHASES` angles (`nominal_views`), where that wheel turned as far as a
 fault window's must (`benchmarks.dataset.MIN_FAULT_REVOLUTIONS`): a defect is compared with healthy wheels
-that rolled as far, not with a robot standing still (whose quiet would tell a moving robot, not a defect).
+that rolled as far, not with a robot standing still (whose quiet would tell a moving robot, not a defect),
+at the orders of the episode's own robot unit (units differ in gear ratio, so in their gear-mesh order).
 Each indicator is compared with its distribution over nominal training windows (looked at the same way); a
 window's score is the summed rarity of its kind's indicators (`Baseline`). Reported per fault kind and
 severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
@@ -48,7 +48,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -118,12 +117,6 @@ def trace_signals(trace: Trace, audio44k: np.ndarray) -> Signals:
     return Signals(preprocess.decimate_audio(audio44k), imu7, angle)
 
 
-def episode_signals(folder: Path) -> Signals:
-    """`trace_signals` of a stored episode (its audio as stored)."""
-    episode = read_episode(Path(folder))
-    return trace_signals(read_trace(episode.path), episode.audio)
-
-
 def _cut(x: np.ndarray, starts: np.ndarray, rate: float, length: int) -> np.ndarray:
     i0 = np.rint(starts * rate).astype(np.int64)
     return np.asarray(x[i0[:, None] + np.arange(length)])
@@ -157,9 +150,9 @@ def fault_view(record: FaultRecord, robot: RobotInfo) -> View:
 
 
 def nominal_views(kind: str, robot: RobotInfo) -> list[View]:
-    """How the oracle looks at a nominal window for `kind`: every wheel, `NOMINAL_PHASES` defect angles (one
-    for worn gears, whose features do not depend on it), the kind's order (a bearing's at the middle of its
-    slip range)."""
+    """How the oracle looks at a nominal window of a `robot` unit for `kind`: every wheel, `NOMINAL_PHASES`
+    defect angles (one for worn gears, whose features do not depend on it), the kind's order on that unit (a
+    bearing's at the middle of its slip range; the gear mesh's at the unit's gear ratio)."""
     order = defect_order(kind, robot) * (1.0 - 0.5 * sum(BEARING_SLIP) if kind == "bearing" else 1.0)
     count = 1 if kind == "motor_degradation" else NOMINAL_PHASES
     phases = 2 * np.pi * np.arange(count) / count
@@ -320,17 +313,17 @@ def score_faults(
     if not faults:
         return []
     found = sorted({r.sub_kind for r in faults})
-    robot = read_trace(data.path / faults[0].episode).robot
-    views = {k: nominal_views(k, robot) for k in found}
 
     def nominal(episodes: dict[str, np.ndarray], what: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         feats: dict[str, list[np.ndarray]] = {k: [] for k in found}
         names: dict[str, list[str]] = {k: [] for k in found}
         for episode_id, starts in tqdm(episodes.items(), desc=what, disable=not progress):
-            sig = episode_signals(data.path / episode_id)
+            trace = read_trace(data.path / episode_id)
+            sig = trace_signals(trace, read_episode(data.path / episode_id).audio)
             turned = _turned(sig, starts)
             for k in found:
-                for v, x in zip(views[k], window_features(sig, starts, views[k]), strict=True):
+                views = nominal_views(k, trace.robot)  # the unit's own gear ratio sets the orders
+                for v, x in zip(views, window_features(sig, starts, views), strict=True):
                     keep = turned[:, v.wheel] >= MIN_FAULT_REVOLUTIONS
                     feats[k].append(x[keep])
                     names[k] += [episode_id] * int(keep.sum())

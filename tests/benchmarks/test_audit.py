@@ -23,6 +23,8 @@ from benchmarks.audit.signals import (
 )
 from benchmarks.cli import main
 from benchmarks.dataset import open_dataset
+from benchmarks.episode import read_trace
+from sim.trace import RobotInfo
 from sim.vocab import COLLISION, NORMAL
 from synth_audio.faults import band_power
 
@@ -250,3 +252,23 @@ def test_the_oracle_sums_each_indicators_tail_evidence() -> None:
     assert baseline.score(far)[0] == pytest.approx(2 * math.log10(100))  # beyond every nominal row, twice
     # the first indicator at its median (50 of 99 nominal rows at or above it): its tail is 51 / 100
     assert baseline.score(median)[0] == pytest.approx(math.log10(100) - math.log10(0.51))
+
+
+def test_the_oracle_looks_at_each_nominal_episode_through_its_own_robot_unit(
+    tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # units differ in gear ratio, so in their gear-mesh order: a nominal window looked at with another unit's
+    # order reads the wrong line (it made the severity-0 control of worn gears tell fault episodes apart)
+    seen: list[float] = []
+    real = oracle.nominal_views
+
+    def spy(kind: str, robot: RobotInfo) -> list[oracle.View]:
+        seen.append(robot.gear_ratio)
+        return real(kind, robot)
+
+    monkeypatch.setattr(oracle, "nominal_views", spy)
+    data = open_dataset(tiny_dataset)
+    oracle.score_faults(data, control=False)
+    nominal = {r.episode for split in ("train", "test") for r in data.rows(split) if r.kind == "normal"}
+    own = {read_trace(tiny_dataset / e).robot.gear_ratio for e in nominal}
+    assert set(seen) == own and len(own) > 1

@@ -38,7 +38,8 @@ from msvdd.training import TrainResult
 R_COLLAPSE_FRACTION = 1e-2
 """R is called collapsed when |R| at the kept epoch is below this fraction of its initial value sqrt(s)."""
 RIDGE_FACTOR = 10.0
-"""A Sigma eigenvalue within this factor of eps is a direction where the ridge eps I dominates."""
+"""A Sigma eigenvalue within this factor of the ridge added to it (`ridge_of`) is a direction the ridge
+dominates."""
 Z_COLLAPSE_VARIANCE = 1e-6
 """A z dimension whose training variance is below this is collapsed."""
 KINDS: tuple[str, ...] = ("normal", "collision", "mechanical")
@@ -250,6 +251,16 @@ def spectrum(cov: np.ndarray, eps: float | None = None) -> Spectrum:
     cond = float(lam[0] / smallest) if smallest > 0 else float("inf")
     ridge = int(np.sum(lam <= RIDGE_FACTOR * eps)) if eps is not None else 0
     return Spectrum([float(v) for v in lam], cond, effective_rank(lam), ridge)
+
+
+def ridge_of(model: MSVDD) -> float:
+    """The ridge added to the model's Sigma: eps I with the paper's per-batch fit; with held statistics
+    (`svdd_fit="frozen"`) eps times the raw estimate's mean eigenvalue, relative to the embeddings' scale."""
+    cfg = model.config
+    if cfg.svdd_fit == "frozen" and model.sigma_raw_ is not None:
+        raw = model.sigma_raw_.detach().cpu().numpy()
+        return float(cfg.eps * np.trace(raw) / raw.shape[0])
+    return float(cfg.eps)
 
 
 def explained_variance(z: np.ndarray, x: np.ndarray) -> float:
@@ -543,7 +554,7 @@ def diagnose(
             seed=seed,
         ),
         history=summarise_history(model.history_, cfg.s),
-        sigma=spectrum(model.sigma_.detach().cpu().numpy(), cfg.eps),
+        sigma=spectrum(model.sigma_.detach().cpu().numpy(), ridge_of(model)),
         sigma_raw=None if model.sigma_raw_ is None else spectrum(model.sigma_raw_.detach().cpu().numpy()),
         held=[held_estimate(f) for f in model.stats_fits_],
         second_term=second_term(model),
@@ -668,8 +679,8 @@ def _sigma_lines(d: Diagnosis) -> list[str]:
     lines = [
         "## 2. Sigma",
         "",
-        f"{_spectrum_line(sig)}; {sig.n_ridge_dominated} eigenvalue(s) within {RIDGE_FACTOR:g} x eps "
-        "(the ridge eps I dominates there).",
+        f"{_spectrum_line(sig)}; {sig.n_ridge_dominated} eigenvalue(s) within {RIDGE_FACTOR:g} x the ridge "
+        "added to it (eps I, or eps times the mean eigenvalue with held statistics), which dominates there.",
         "Eigenvalues: " + ", ".join(_f(v, 3) for v in sig.eigenvalues) + ".",
     ]
     if d.sigma_raw is not None:

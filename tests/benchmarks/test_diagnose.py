@@ -18,6 +18,7 @@ from benchmarks.diagnose import (
     effective_rank,
     explained_variance,
     load_msvdd,
+    ridge_of,
     score_terms,
     spectrum,
     stratified_subsample,
@@ -193,3 +194,16 @@ def test_too_few_windows_exits_2_before_reading_anything(
     argv = ["diagnose", str(tmp_path / "model"), "--data", str(tmp_path / "data"), "--max-windows", "5"]
     assert main(argv) == 2
     assert "--max-windows = 5 is invalid; allowed: an integer >= 20" in capsys.readouterr().err
+
+
+def test_the_ridge_of_held_statistics_is_relative_to_the_spectrum(tiny_model: Path) -> None:
+    # with svdd_fit="frozen" the floor adds eps times the raw estimate's mean eigenvalue, not eps I: Sigma is
+    # that raw estimate, floored, plus that ridge
+    _, model = load_msvdd(tiny_model)
+    assert model.config.svdd_fit == "frozen" and model.sigma_raw_ is not None
+    raw = model.sigma_raw_.detach().cpu().numpy()
+    ridge = ridge_of(model)
+    assert ridge == pytest.approx(model.config.eps * np.trace(raw) / raw.shape[0])
+    assert model.sigma_ is not None
+    sigma = model.sigma_.detach().cpu().numpy()
+    assert np.linalg.eigvalsh(sigma).min() >= ridge * (1 - 1e-5)

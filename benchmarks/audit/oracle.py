@@ -184,7 +184,6 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
     fault kind; see the module)."""
     starts = np.asarray(starts, dtype=np.float64)
     kind = views[0].kind
-    imu = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN)  # (k, 400, 7)
     audio = _cut(sig.audio, starts, AUDIO_RATE, AUDIO_LEN).sum(axis=-1)  # (k, 8820) mono
     t_imu = np.arange(IMU_LEN) / IMU_RATE
     angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
@@ -197,7 +196,7 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
             mesh = condition.order_lines(audio, angle_audio, v.order + np.array([-1.0, 0.0, 1.0]))
             out.append(np.log(mesh.sum(axis=1) * spread + 1e-12)[:, None])
         return out
-    channels = imu.transpose(0, 2, 1)  # (k, 7, 400)
+    channels = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN).transpose(0, 2, 1)  # (k, 7, 400)
     channels_of = range(channels.shape[1])
     wanted = INDICATORS[kind]
     if "strike_audio" in wanted:

@@ -1,4 +1,4 @@
-"""Condition monitoring of wheel faults: envelopes, order tracking against a wheel angle, synchronous means.
+"""Condition monitoring of wheel faults: envelopes and order tracking against a wheel angle.
 
 What a vibration analyst computes on a rotating machine, vectorised over a batch of windows:
 
@@ -7,13 +7,11 @@ What a vibration analyst computes on a rotating machine, vectorised over a batch
 - `order_lines`: the complex demodulation of a signal at multiples of an order of the wheel's angle, i.e.
   the order spectrum's line at k x order, normalised by the signal's own standard deviation; it needs no
   resampling (each sample carries its own angle), so it works whatever the speed profile, reversals included;
-- `synchronous_strength`: the time-synchronous average over the defect's period (samples binned by the
-  defect's phase), as the energy of the bin means over what the same number of independent samples would
-  give: 1 for a signal unrelated to the angle, large for a defect that repeats at the same angle;
+- `order_line_grid`: the same lines at evenly spaced orders, one multiplication per sample and order (a
+  search over orders);
 - `revolutions`: how far a wheel turned, whichever way.
 
-The audit's privileged oracle (`benchmarks.audit.oracle`) feeds them the true wheel angle; the fault-aware
-reference detector (`benchmarks.methods.orders`) feeds them the wheel encoders' angle.
+Each fault kind's indicators built on them are in `benchmarks.fault_indicators`.
 """
 
 from __future__ import annotations
@@ -61,26 +59,20 @@ def order_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndar
     return np.asarray(np.abs(demod) / scale[:, None])
 
 
-def synchronous_strength(x: np.ndarray, angle: np.ndarray, order: float, bins: int = 16) -> np.ndarray:
-    """(N,) strength of the time-synchronous average of (N, n) signals over the period of `order` (per rev).
-
-    Samples are binned by the defect's phase (order x angle, modulo one period) into `bins` bins; the
-    strength is sum_b n_b (mean_b - mean)^2 / var(x) over (bins - 1): about 1 for a signal unrelated to the
-    angle (for independent samples), larger for one that repeats at the same phase. A window in which the
-    wheel does not turn fills one bin and gives 0.
-    """
+def order_line_grid(x: np.ndarray, angle: np.ndarray, first: float, step: float, count: int) -> np.ndarray:
+    """(N, count) `order_lines` at the evenly spaced orders first + j step, j < count: each line's phasor is
+    the previous one's times exp(-i step angle) (one multiplication per sample, not one exponential)."""
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    n_win = x.shape[0]
-    phase = np.mod(np.asarray(angle, dtype=np.float64) * order / (2 * np.pi), 1.0)
-    index = np.minimum((phase * bins).astype(np.int64), bins - 1) + bins * np.arange(n_win)[:, None]
-    counts = np.bincount(index.ravel(), minlength=n_win * bins).reshape(n_win, bins)
-    sums = np.bincount(index.ravel(), weights=x.ravel(), minlength=n_win * bins).reshape(n_win, bins)
-    mean = x.mean(axis=-1, keepdims=True)
-    var = np.maximum(x.var(axis=-1), 1e-30)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        bin_mean = np.where(counts > 0, sums / np.maximum(counts, 1), mean)
-    between = (counts * (bin_mean - mean) ** 2).sum(axis=-1)
-    return np.asarray(between / var / (bins - 1))
+    angle = np.asarray(angle, dtype=np.float64)
+    centred = x - x.mean(axis=-1, keepdims=True)
+    scale = np.maximum(centred.std(axis=-1), 1e-30)
+    phasor = centred * np.exp(-1j * first * angle)
+    turn = np.exp(-1j * step * angle)
+    out = np.empty((x.shape[0], count))
+    for j in range(count):
+        out[:, j] = np.abs(phasor.sum(axis=-1)) / x.shape[-1] / scale
+        phasor *= turn
+    return out
 
 
 def revolutions(angle: np.ndarray) -> np.ndarray:
@@ -93,8 +85,6 @@ SPLIT_HZ = 4.0
 """IMU content below this is the chassis' smooth motion (tracked as it is), above it vibration (its power)."""
 ENVELOPE_BLOCK = 21
 """Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
-MESH_NEIGHBOURS: tuple[float, ...] = (-5.5, -4.5, -3.5, -2.5, 2.5, 3.5, 4.5, 5.5)
-"""Orders around a gear-mesh line (between its sidebands) whose lines give its noise floor."""
 
 
 def log_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
@@ -111,12 +101,3 @@ def block_envelope(
     env = squared_envelope(audio, rate, band)
     env = env.reshape(len(env), -1, ENVELOPE_BLOCK).mean(axis=-1)
     return env, (np.arange(env.shape[1]) + 0.5) * ENVELOPE_BLOCK / rate
-
-
-def mesh_lines(audio: np.ndarray, angle: np.ndarray, mesh: float, shaft: float) -> np.ndarray:
-    """(N, 3) log of the gear-mesh line of (N, n) audio at wheel angles `angle` and of its two motor-shaft
-    sidebands (mesh -+ `shaft` orders), each over the median line at `MESH_NEIGHBOURS` around the mesh."""
-    offsets = np.array([0.0, -shaft, shaft, *MESH_NEIGHBOURS])
-    lines = order_lines(audio, angle, mesh + offsets)
-    floor = np.maximum(np.median(lines[:, 3:], axis=1, keepdims=True), 1e-12)
-    return np.asarray(np.log(np.maximum(lines[:, :3], 1e-12) / floor))

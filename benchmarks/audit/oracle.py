@@ -5,30 +5,8 @@ question with what condition monitoring computes, given information no detector 
 angle of every wheel, which wheel is faulty, the angle at which its defect meets the floor and the defect's
 order (`sim.trace.FaultRecord`: `phase`, `defect_order`). On each 2 s window of the benchmark (the
 detectors' 4410 Hz audio and the 200 Hz IMU, `benchmarks.condition`) it reads each fault kind's own
-signature (`INDICATORS`), not its loudness (the naive probes read that):
-
-- strikes (flat spot, bearing, loose hub): the response in the `STRIKE_GATE_S` after each pass of the defect
-  (the angle crossing phase + 2 pi j / order) over the rest of the window, in the audio's squared envelope in
-  the kind's band (`sim.faults.envelope_band`) and in the motion power (above 0.5 Hz) of the IMU: the
-  time-synchronous average of the defect's strike against everything else;
-- once-per-revolution motion (out-of-round wheel, loose hub): the order-1 line of the IMU's smooth motion
-  (below `condition.SPLIT_HZ`);
-- a loose hub's rattle: the IMU's vibration power above `condition.SPLIT_HZ`;
-- worn gears: the level of the gear-mesh line with its wheel-order sidebands (mesh -+ 1 order) in the raw
-  audio, the tone's amplitude tracked by the wheel's angle (condition monitoring's gear-mesh amplitude).
-
-Each IMU indicator is the mean of its logarithm over the seven channels (z-velocity, accelerometer and
-gyroscope xyz): the chassis' response, however a strike spreads over the axes, as one indicator (seven
-separate ones would each add a chance of a nominal extreme, and bury the audio's evidence).
-
-Which indicators each kind reads was chosen on dev datasets (seeds never audited): an indicator whose
-evidence is at chance for a kind only adds nominal extremes to its score. On dev, the chassis did not carry a
-bearing's ball strikes (its IMU strike indicator at chance, the audio's far above) nor a flat's
-once-per-revolution motion (the rigid four-wheel chassis rests on three wheels while one rolls over its
-flat), and an out-of-round wheel did not modulate the rolling sound. A worn pair's mesh line over the lines
-around it saturated at low severity (the whine's own wheel- and shaft-rate modulation lifts its neighbours),
-where the mesh group's level grows with the wear; its motor-shaft sidebands and the IMU's shaft-order line
-were weaker.
+signature (`benchmarks.fault_indicators.INDICATORS`, shared with the fault-aware reference detector), not
+its loudness (the naive probes read that).
 
 A fault window is looked at through its faulty wheel at its defect's angle and order; a nominal window
 through every wheel at `NOMINAL_PHASES` angles (`nominal_views`), where that wheel turned as far as a
@@ -36,8 +14,8 @@ fault window's must (`benchmarks.dataset.MIN_FAULT_REVOLUTIONS`): a defect is co
 that rolled as far, not with a robot standing still (whose quiet would tell a moving robot, not a defect),
 at the orders of the episode's own robot unit (units differ in gear ratio, so in their gear-mesh order).
 Each indicator is compared with its distribution over nominal training windows (looked at the same way); a
-window's score is the summed rarity of its kind's indicators (`Baseline`). Reported per fault kind and
-severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
+window's score is the summed rarity of its kind's indicators (`fault_indicators.Rarity`). Reported per fault
+kind and severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
 bootstrap interval; at severity >= 0.75 each kind must reach `ORACLE_FLOOR`.
 
 The control keeps it honest: every fault episode simulated and rendered again with its fault at severity
@@ -55,14 +33,15 @@ import numpy as np
 
 import sim
 import synth_audio
-from benchmarks import condition
+from benchmarks import fault_indicators
 from benchmarks.audit.report import ProbeRow
 from benchmarks.dataset import MIN_FAULT_REVOLUTIONS, Dataset, WindowRow, episode_audio_config
 from benchmarks.episode import read_episode, read_trace
+from benchmarks.fault_indicators import Rarity
 from benchmarks.uncertainty import Interval, auc_interval
 from msvdd import preprocess
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE
-from sim.faults import BEARING_SLIP, defect_order, envelope_band
+from sim.faults import BEARING_SLIP, defect_order
 from sim.random_scenarios import scale_speeds
 from sim.trace import FaultRecord, RobotInfo, Trace
 
@@ -76,17 +55,6 @@ TRAIN_WINDOWS = 1500
 """Most nominal training windows the oracle's baseline is fitted on (evenly over the episodes)."""
 NOMINAL_PHASES = 4
 """Defect angles (evenly spaced) a nominal window is looked at with, for each wheel."""
-STRIKE_GATE_S = 0.05
-"""How long before and after a pass of the defect its response is read, s (a flat's dip before its slap,
-the tyre's and chassis' ring after a strike)."""
-INDICATORS: dict[str, tuple[str, ...]] = {
-    "flat_spot": ("strike_audio", "strike_imu"),
-    "bearing": ("strike_audio",),
-    "loose_wheel": ("strike_audio", "once_per_rev_imu", "vibration_imu"),
-    "out_of_round": ("once_per_rev_imu",),
-    "motor_degradation": ("mesh_level_audio",),
-}
-"""The indicators the oracle reads for each fault kind, in its feature columns' order (see the module)."""
 
 
 def severity_bin(severity: float) -> str:
@@ -162,95 +130,15 @@ def nominal_views(kind: str, robot: RobotInfo) -> list[View]:
     return [View(kind, w, float(p), order, shaft) for w in range(len(robot.wheel_names)) for p in phases]
 
 
-def _gated(power: np.ndarray, angle: np.ndarray, view: View, rate: float) -> np.ndarray:
-    """(k,) mean of (k, n) `power` within `STRIKE_GATE_S` of each pass of the defect (the angle passing
-    phase + 2 pi j / order) over its mean elsewhere; 1 for a window without a pass (floored at 1e-3)."""
-    cycles = np.floor(view.order * (angle - view.phase) / (2 * np.pi))
-    hit = np.zeros(angle.shape, dtype=np.int64)
-    hit[:, 1:] = cycles[:, 1:] != cycles[:, :-1]
-    span = max(1, round(STRIKE_GATE_S * rate))
-    counts = np.concatenate([np.zeros((len(hit), span + 1), np.int64), np.cumsum(hit, axis=1)], axis=1)
-    counts = np.concatenate([counts, np.repeat(counts[:, -1:], span, axis=1)], axis=1)
-    n = angle.shape[1]
-    gate = (counts[:, 2 * span + 1 : 2 * span + 1 + n] - counts[:, :n]) > 0
-    inside = (power * gate).sum(axis=1) / np.maximum(gate.sum(axis=1), 1)
-    outside = (power * ~gate).sum(axis=1) / np.maximum((~gate).sum(axis=1), 1)
-    ratio = np.where(gate.any(axis=1), inside / np.maximum(outside, 1e-30), 1.0)
-    return np.asarray(np.maximum(ratio, 1e-3))
-
-
 def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list[np.ndarray]:
     """(k, F) oracle features of the windows at `starts` (s), looked at through each of `views` (all of one
-    fault kind; see the module)."""
+    fault kind; `fault_indicators.indicators`)."""
     starts = np.asarray(starts, dtype=np.float64)
-    kind = views[0].kind
     audio = _cut(sig.audio, starts, AUDIO_RATE, AUDIO_LEN).sum(axis=-1)  # (k, 8820) mono
-    t_imu = np.arange(IMU_LEN) / IMU_RATE
-    angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
-    out: list[np.ndarray] = []
-    if kind == "motor_degradation":
-        t_audio = np.arange(AUDIO_LEN) / AUDIO_RATE
-        spread = audio.std(axis=-1)
-        for v in views:
-            angle_audio = np.stack([np.interp(t_audio, t_imu, a) for a in angles[v.wheel]])
-            mesh = condition.order_lines(audio, angle_audio, v.order + np.array([-1.0, 0.0, 1.0]))
-            out.append(np.log(mesh.sum(axis=1) * spread + 1e-12)[:, None])
-        return out
     channels = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN).transpose(0, 2, 1)  # (k, 7, 400)
-    channels_of = range(channels.shape[1])
-    wanted = INDICATORS[kind]
-    if "strike_audio" in wanted:
-        env, t_env = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
-    if "strike_imu" in wanted:
-        motion = condition.band_pass(channels, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
-    if "once_per_rev_imu" in wanted:
-        smooth = condition.band_pass(channels, IMU_RATE, (0.3, condition.SPLIT_HZ))
-    if "vibration_imu" in wanted:
-        power = condition.band_pass(channels, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
-        vibration = np.mean([np.log(power[:, c].mean(axis=-1) + 1e-20) for c in channels_of], axis=0)
-    for v in views:
-        angle = angles[v.wheel]
-        parts = []
-        if "strike_audio" in wanted:
-            angle_env = np.stack([np.interp(t_env, t_imu, a) for a in angle])
-            parts.append(np.log(_gated(env, angle_env, v, AUDIO_RATE / condition.ENVELOPE_BLOCK)))
-        if "strike_imu" in wanted:
-            parts.append(
-                np.mean([np.log(_gated(motion[:, c], angle, v, IMU_RATE)) for c in channels_of], axis=0)
-            )
-        if "once_per_rev_imu" in wanted:
-            lines = [condition.log_lines(smooth[:, c], angle, np.array([1.0]))[:, 0] for c in channels_of]
-            parts.append(np.mean(lines, axis=0))
-        if "vibration_imu" in wanted:
-            parts.append(vibration)
-        out.append(np.stack(parts, axis=1))
-    return out
-
-
-@dataclass
-class Baseline:
-    """Each indicator's distribution over nominal windows; a window's score is the summed rarity of its
-    indicators."""
-
-    sorted_values: np.ndarray
-    """(n, F) each feature's nominal values, sorted."""
-
-    @classmethod
-    def fit(cls, x: np.ndarray) -> Baseline:
-        """Fit on (n, F) nominal rows."""
-        return cls(np.sort(np.asarray(x, dtype=np.float64), axis=0))
-
-    def score(self, x: np.ndarray) -> np.ndarray:
-        """(k,) the sum over the features of (k, F) rows of -log10 of each one's upper-tail probability under
-        the nominal distribution (empirical, counting the row itself: at most log10(n + 1) each): Fisher's
-        combination of the indicators' evidence, each on its own scale."""
-        n = self.sorted_values.shape[0]
-        above = np.stack(
-            [n - np.searchsorted(self.sorted_values[:, f], x[:, f], side="left") for f in range(x.shape[1])],
-            axis=1,
-        )
-        tail = (above + 1.0) / (n + 1.0)
-        return np.asarray(-np.log10(tail).sum(axis=1))
+    prep = fault_indicators.prepare(views[0].kind, audio, channels)
+    angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
+    return [fault_indicators.indicators(prep, angles[v.wheel], v.phase, v.order) for v in views]
 
 
 @dataclass(frozen=True)
@@ -328,7 +216,7 @@ def score_faults(
         return {k: (np.concatenate(feats[k]), np.array(names[k])) for k in found}
 
     train = nominal(_by_episode(_train_rows(data)), "oracle: train")
-    fitted = {k: Baseline.fit(x) for k, (x, _) in train.items()}
+    fitted = {k: Rarity.fit(x) for k, (x, _) in train.items()}
     normal = nominal(_by_episode([r for r in test if r.kind == "normal"]), "oracle: nominal test")
     severities = data.fault_severities()
     out = []

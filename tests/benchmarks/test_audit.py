@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks import fault_indicators
 from benchmarks.audit import FAIL, PASS, REPORT, oracle, read, run_audit, stored_audit, write
 from benchmarks.audit.core import context_starts
 from benchmarks.audit.report import ProbeRow
@@ -238,7 +239,7 @@ def test_the_oracle_reads_one_column_per_indicator_of_each_kind() -> None:
     angle = np.outer(np.arange(m) / 200.0, 2 * np.pi * np.array([1.0, 1.1, 0.9, 1.2]))
     sig = oracle.Signals(rng.normal(size=(n, 2)), rng.normal(size=(m, 7)), angle)
     starts = np.array([0.0, 1.5, 3.5])
-    for kind, names in oracle.INDICATORS.items():
+    for kind, names in fault_indicators.INDICATORS.items():
         views = [oracle.View(kind, w, 0.3, 3.0 if kind == "bearing" else 1.0, 30.0) for w in (0, 2)]
         feats = oracle.window_features(sig, starts, views)
         assert [f.shape for f in feats] == [(3, len(names))] * 2, kind
@@ -247,11 +248,15 @@ def test_the_oracle_reads_one_column_per_indicator_of_each_kind() -> None:
 
 def test_the_oracle_sums_each_indicators_tail_evidence() -> None:
     nominal = np.stack([np.arange(99.0), np.arange(99.0)[::-1]], axis=1)  # 99 rows, two indicators
-    baseline = oracle.Baseline.fit(nominal)
-    far, median = np.array([[500.0, 500.0]]), np.array([[49.0, 500.0]])
-    assert baseline.score(far)[0] == pytest.approx(2 * math.log10(100))  # beyond every nominal row, twice
-    # the first indicator at its median (50 of 99 nominal rows at or above it): its tail is 51 / 100
-    assert baseline.score(median)[0] == pytest.approx(math.log10(100) - math.log10(0.51))
+    baseline = fault_indicators.Rarity.fit(nominal)
+    far, median = np.array([[500.0, 500.0]]), np.array([[49.0, 98.0]])
+    # beyond every nominal row, twice: log10(100), then an exponential tail with the top tenth's slope (the
+    # 9 rows above the 90th, 89, reach 98: one decade per 9)
+    assert baseline.score(far)[0] == pytest.approx(2 * (math.log10(100) + (500.0 - 98.0) / 9.0))
+    assert baseline.score(np.array([[98.5, 98.5]]))[0] < baseline.score(far)[0]
+    # the first indicator at its median (50 of 99 nominal rows at or above it): its tail is 51 / 100; the
+    # second at the largest nominal value (1 row at or above it): 2 / 100
+    assert baseline.score(median)[0] == pytest.approx(-math.log10(0.51) - math.log10(0.02))
 
 
 def test_the_oracle_looks_at_each_nominal_episode_through_its_own_robot_unit(

@@ -21,27 +21,21 @@ def test_an_order_locked_tone_has_a_line_of_one_half_and_noise_next_to_none() ->
     ) < 3 / np.sqrt(n)
 
 
-def test_a_wheel_that_stands_still_has_no_lines_and_no_synchronous_average() -> None:
+def test_a_wheel_that_stands_still_has_no_lines() -> None:
     x = np.random.default_rng(1).normal(size=(1, 400))
     angle = np.full((1, 400), 1.3)
     assert condition.order_lines(x, angle, np.array([1.0]))[0, 0] == pytest.approx(0.0, abs=1e-12)
-    assert condition.synchronous_strength(x, angle, 1.0)[0] == pytest.approx(0.0, abs=1e-12)
     assert condition.revolutions(angle)[0] == 0.0
 
 
-def test_the_synchronous_average_finds_a_strike_at_a_fixed_angle_and_not_noise() -> None:
+def test_the_order_line_grid_equals_the_lines_computed_one_by_one() -> None:
     rng = np.random.default_rng(2)
-    n, revs = 1200, 6.0
-    angle = np.linspace(0.0, 2 * np.pi * revs, n, endpoint=False)[None]
-    noise = rng.normal(size=(300, n))
-    assert np.mean(
-        condition.synchronous_strength(noise, np.repeat(angle, 300, axis=0), 1.0)
-    ) == pytest.approx(1.0, abs=0.1)
-    strikes = rng.normal(size=(1, n))
-    hits = np.arange(int(revs)) * (n // int(revs)) + 17
-    for lag in range(5):  # each strike rings for 5 samples at the same angle every revolution
-        strikes[0, hits + lag] += 10.0
-    assert condition.synchronous_strength(strikes, angle, 1.0)[0] > 10.0
+    angle = np.cumsum(rng.uniform(0.0, 0.05, size=(3, 2000)), axis=1) + 1e3  # uneven speed, a large angle
+    x = rng.normal(size=(3, 2000)) + np.cos(197.5 * angle)
+    orders = 190.0 + 0.25 * np.arange(60)
+    grid = condition.order_line_grid(x, angle, 190.0, 0.25, 60)
+    np.testing.assert_allclose(grid, condition.order_lines(x, angle, orders), rtol=1e-7, atol=1e-12)
+    assert np.all(np.argmax(grid, axis=1) == 30)  # the tone's order
 
 
 def test_the_squared_envelope_of_an_am_tone_is_its_squared_modulation() -> None:

@@ -59,7 +59,7 @@ def _windows(n: int, seed: int, strike: float) -> Windows:
         for i in range(n):
             wheel = np.interp(t, np.arange(IMU_LEN) / IMU_RATE, odometry[i, :, 2]) + rng.uniform(0, 2 * np.pi)
             for j in np.flatnonzero(np.diff(np.floor(wheel / (2 * np.pi))) != 0):
-                end = min(j + burst.size, AUDIO_LEN)
+                end = min(int(j) + burst.size, AUDIO_LEN)
                 audio[i, j:end, :] += strike * burst[: end - j, None]
     return Windows(
         audio=audio.astype(np.float32),

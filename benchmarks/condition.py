@@ -7,8 +7,6 @@ What a vibration analyst computes on a rotating machine, vectorised over a batch
 - `order_lines`: the complex demodulation of a signal at multiples of an order of the wheel's angle, i.e.
   the order spectrum's line at k x order, normalised by the signal's own standard deviation; it needs no
   resampling (each sample carries its own angle), so it works whatever the speed profile, reversals included;
-- `order_line_grid`: the same lines at evenly spaced orders, one multiplication per sample and order (a
-  search over orders);
 - `revolutions`: how far a wheel turned, whichever way.
 
 Each fault kind's indicators built on them are in `benchmarks.fault_indicators`.
@@ -57,22 +55,6 @@ def order_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndar
     phase = np.asarray(angle, dtype=np.float64)[:, None, :] * np.asarray(orders, dtype=np.float64)[:, None]
     demod = np.einsum("nj,nkj->nk", centred, np.exp(-1j * phase)) / x.shape[-1]
     return np.asarray(np.abs(demod) / scale[:, None])
-
-
-def order_line_grid(x: np.ndarray, angle: np.ndarray, first: float, step: float, count: int) -> np.ndarray:
-    """(N, count) `order_lines` at the evenly spaced orders first + j step, j < count: each line's phasor is
-    the previous one's times exp(-i step angle) (one multiplication per sample, not one exponential)."""
-    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    angle = np.asarray(angle, dtype=np.float64)
-    centred = x - x.mean(axis=-1, keepdims=True)
-    scale = np.maximum(centred.std(axis=-1), 1e-30)
-    phasor = centred * np.exp(-1j * first * angle)
-    turn = np.exp(-1j * step * angle)
-    out = np.empty((x.shape[0], count))
-    for j in range(count):
-        out[:, j] = np.abs(phasor.sum(axis=-1)) / x.shape[-1] / scale
-        phasor *= turn
-    return out
 
 
 def revolutions(angle: np.ndarray) -> np.ndarray:

@@ -5,7 +5,7 @@ audit's privileged oracle (`benchmarks.audit.oracle`: the true wheel angle, the 
 and the fault-aware reference detector (`benchmarks.methods.orders`: the wheel encoders' angle, every wheel
 and defect angle in turn):
 
-- strikes (flat spot, bearing, loose hub): the response in the `STRIKE_GATE_S` after each pass of the defect
+- strikes (flat spot, bearing, loose hub): the response within `STRIKE_GATE_S` of each pass of the defect
   (the angle crossing phase + 2 pi j / order) over the rest of the window (`gated_ratio`), in the audio's
   squared envelope in the kind's band (`sim.faults.envelope_band`) and in the motion power (above 0.5 Hz) of
   the IMU: the time-synchronous average of the defect's strike against everything else;
@@ -76,19 +76,12 @@ def gated_ratio(power: np.ndarray, angle: np.ndarray, phase: float, order: float
     return np.asarray(np.maximum(ratio, 1e-3))
 
 
-def mesh_level(
-    audio: np.ndarray, angle: np.ndarray, first: float, step: float = 1.0, count: int = 1
-) -> np.ndarray:
-    """(k, count) log level of the gear-mesh line at each of the orders first + j `step` (j < count; 1 / step
-    a whole number) with its two wheel-order sidebands (mesh -+ 1), in (k, n) audio at wheel angles `angle`
-    (k, n): the lines' sum (relative to the audio's standard deviation, `condition.order_lines`) times that
-    deviation."""
-    per_order = round(1.0 / step)
-    if per_order < 1 or abs(per_order * step - 1.0) > 1e-9:
-        raise ValueError(f"step = {step!r} is invalid; allowed: 1 / step a whole number")
-    lines = condition.order_line_grid(audio, angle, first - 1.0, step, count + 2 * per_order)
-    summed = lines[:, :count] + lines[:, per_order : per_order + count] + lines[:, 2 * per_order :]
-    return np.asarray(np.log(summed * audio.std(axis=-1)[:, None] + 1e-12))
+def mesh_level(audio: np.ndarray, angle: np.ndarray, mesh: float) -> np.ndarray:
+    """(k,) log level of the gear-mesh line at order `mesh` with its two wheel-order sidebands (mesh -+ 1), in
+    (k, n) audio at wheel angles `angle` (k, n): the three lines' sum (relative to the audio's standard
+    deviation, `condition.order_lines`) times that deviation."""
+    lines = condition.order_lines(audio, angle, mesh + np.array([-1.0, 0.0, 1.0]))
+    return np.asarray(np.log(lines.sum(axis=1) * audio.std(axis=-1) + 1e-12))
 
 
 def resampled(angle: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -130,32 +123,54 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
         smooth = condition.band_pass(imu7, IMU_RATE, (0.3, condition.SPLIT_HZ))
     if "vibration_imu" in wanted:
         power = condition.band_pass(imu7, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
-        vibration = np.mean([np.log(power[:, c].mean(axis=-1) + 1e-20) for c in range(imu7.shape[1])], axis=0)
+        vibration = np.mean(
+            [np.log(power[:, c].mean(axis=-1) + 1e-20) for c in range(power.shape[1])], axis=0
+        )
     return Prepared(kind, audio, envelope, envelope_time, motion, smooth, vibration)
 
 
-def indicators(prep: Prepared, angle: np.ndarray, phase: float, order: float) -> np.ndarray:
-    """(k, F) the `INDICATORS` of `prep.kind` of the prepared windows, looked at through a wheel at angles
-    `angle` (k, `IMU_LEN`) with a defect at wheel angle `phase` (rad) and `order` events per revolution (for
-    worn gears, the gear-mesh order)."""
-    if prep.kind == "motor_degradation":
-        audio_angle = resampled(angle, np.arange(prep.audio.shape[-1]) / AUDIO_RATE)
-        return mesh_level(prep.audio, audio_angle, order)
-    parts = []
-    if prep.envelope is not None and prep.envelope_time is not None:
-        env_angle = resampled(angle, prep.envelope_time)
-        rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
-        parts.append(np.log(gated_ratio(prep.envelope, env_angle, phase, order, rate)))
-    if prep.motion is not None:
-        channels = range(prep.motion.shape[1])
-        gated = [np.log(gated_ratio(prep.motion[:, c], angle, phase, order, IMU_RATE)) for c in channels]
-        parts.append(np.mean(gated, axis=0))
-    if prep.smooth is not None:
-        lines = [condition.log_lines(prep.smooth[:, c], angle, np.array([1.0]))[:, 0] for c in range(7)]
-        parts.append(np.mean(lines, axis=0))
-    if prep.vibration is not None:
-        parts.append(prep.vibration)
-    return np.stack(parts, axis=1)
+def indicators(prep: Prepared, angle: np.ndarray, phases: np.ndarray, order: float) -> np.ndarray:
+    """(k, P, F) the `INDICATORS` of `prep.kind` of the prepared windows (columns in that order), looked at
+    through a wheel at angles `angle` (k, `IMU_LEN`) with a defect at each of the wheel angles `phases` (P,)
+    (rad) and `order` events per revolution (for worn gears, the gear-mesh order; its level does not depend on
+    the defect's angle)."""
+    phases = np.atleast_1d(np.asarray(phases, dtype=np.float64))
+    k, count = angle.shape[0], phases.size
+    columns: list[np.ndarray] = []
+    for name in INDICATORS[prep.kind]:
+        if name == "mesh_level_audio":
+            audio_angle = resampled(angle, np.arange(prep.audio.shape[-1]) / AUDIO_RATE)
+            column = np.repeat(mesh_level(prep.audio, audio_angle, order)[:, None], count, axis=1)
+        elif name == "strike_audio":
+            assert prep.envelope is not None and prep.envelope_time is not None
+            env_angle = resampled(angle, prep.envelope_time)
+            rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
+            column = np.stack(
+                [np.log(gated_ratio(prep.envelope, env_angle, p, order, rate)) for p in phases], axis=1
+            )
+        elif name == "strike_imu":
+            assert prep.motion is not None
+            channels = range(prep.motion.shape[1])
+            column = np.stack(
+                [
+                    np.mean(
+                        [np.log(gated_ratio(prep.motion[:, c], angle, p, order, IMU_RATE)) for c in channels],
+                        0,
+                    )
+                    for p in phases
+                ],
+                axis=1,
+            )
+        elif name == "once_per_rev_imu":
+            assert prep.smooth is not None
+            lines = [condition.log_lines(prep.smooth[:, c], angle, np.array([1.0]))[:, 0] for c in
+                     range(prep.smooth.shape[1])]  # fmt: skip
+            column = np.repeat(np.mean(lines, axis=0)[:, None], count, axis=1)
+        else:  # vibration_imu
+            assert prep.vibration is not None
+            column = np.repeat(prep.vibration[:, None], count, axis=1)
+        columns.append(column.reshape(k, count))
+    return np.stack(columns, axis=2)
 
 
 TAIL_FRACTION = 0.1
@@ -180,9 +195,10 @@ class Rarity:
         the nominal distribution: Fisher's combination of the indicators' evidence, each on its own scale.
 
         Within the nominal values the tail is empirical, counting the row itself (at most log10(n + 1));
-        beyond the largest, it falls on as an exponential tail (a peaks-over-threshold model) with the slope
-        of the top `TAIL_FRACTION` of the nominal values, so that a row far beyond every nominal one is
-        rarer than one just beyond (none if those values are all equal)."""
+        beyond the largest, it falls on as an exponential tail (a peaks-over-threshold model) whose slope is
+        the range estimate over the top `TAIL_FRACTION` (k rows): log10(k + 1) decades between the (k + 1)-th
+        largest value and the largest, so that a row far beyond every nominal one is rarer than one just
+        beyond (no tail if those values are all equal)."""
         n = self.sorted_values.shape[0]
         k = max(1, int(TAIL_FRACTION * n))
         total = np.zeros(x.shape[0])

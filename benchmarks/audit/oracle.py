@@ -138,7 +138,9 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
     channels = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN).transpose(0, 2, 1)  # (k, 7, 400)
     prep = fault_indicators.prepare(views[0].kind, audio, channels)
     angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
-    return [fault_indicators.indicators(prep, angles[v.wheel], v.phase, v.order) for v in views]
+    return [
+        fault_indicators.indicators(prep, angles[v.wheel], np.array([v.phase]), v.order)[:, 0] for v in views
+    ]
 
 
 @dataclass(frozen=True)

@@ -28,16 +28,6 @@ def test_a_wheel_that_stands_still_has_no_lines() -> None:
     assert condition.revolutions(angle)[0] == 0.0
 
 
-def test_the_order_line_grid_equals_the_lines_computed_one_by_one() -> None:
-    rng = np.random.default_rng(2)
-    angle = np.cumsum(rng.uniform(0.0, 0.05, size=(3, 2000)), axis=1) + 1e3  # uneven speed, a large angle
-    x = rng.normal(size=(3, 2000)) + np.cos(197.5 * angle)
-    orders = 190.0 + 0.25 * np.arange(60)
-    grid = condition.order_line_grid(x, angle, 190.0, 0.25, 60)
-    np.testing.assert_allclose(grid, condition.order_lines(x, angle, orders), rtol=1e-7, atol=1e-12)
-    assert np.all(np.argmax(grid, axis=1) == 30)  # the tone's order
-
-
 def test_the_squared_envelope_of_an_am_tone_is_its_squared_modulation() -> None:
     rate, n = 4000.0, 4000
     t = np.arange(n) / rate

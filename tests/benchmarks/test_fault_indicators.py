@@ -3,46 +3,48 @@ tests them per wheel and defect angle (`benchmarks.methods.orders`), against pla
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from benchmarks import fault_indicators
-from benchmarks.methods.orders import OrderReference, hypothesis_features, mesh_orders
+from benchmarks import condition, fault_indicators
+from benchmarks.methods._io import save_npz
+from benchmarks.methods.orders import OrderReference
 from benchmarks.metrics import roc_auc
-from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, WindowError, Windows
+from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, ModelFormatError, WindowError, Windows
 from sim.faults import envelope_band
 
 
 def test_the_gate_reads_the_power_at_each_pass_of_the_defect_over_the_rest() -> None:
     n, rate = 400, 200.0
-    angle = np.linspace(0.0, 4 * np.pi, n, endpoint=False)[None]  # two revolutions
+    angle = np.linspace(0.0, 4 * np.pi, n, endpoint=False)[None]  # two revolutions, pi / 100 a sample
     power = np.ones((1, n))
-    assert fault_indicators.gated_ratio(power, angle, 1.0, 1.0, rate)[0] == pytest.approx(1.0)
-    passes = np.flatnonzero(np.diff(np.floor((angle[0] - 1.0) / (2 * np.pi))) != 0) + 1
+    assert fault_indicators.gated_ratio(power, angle, 1.0, 3.0, rate)[0] == pytest.approx(1.0)
+    # order 3 at phase pi / 2: passes at pi / 2 + 2 pi j / 3, i.e. every 200 / 3 samples from sample 50
+    passes = np.array([50, 117, 183, 250, 317, 383])
     power[0, passes] = 101.0  # a strike at each pass, nothing elsewhere
     span = round(fault_indicators.STRIKE_GATE_S * rate)
-    inside = 2 * span + 1  # samples of each gate
+    inside = 2 * span + 1  # samples of each gate (passes far enough apart for the gates not to overlap)
     expected = (inside - 1 + 101.0) / inside  # the gate's mean over the rest's (1)
-    assert fault_indicators.gated_ratio(power, angle, 1.0, 1.0, rate)[0] == pytest.approx(expected)
+    assert fault_indicators.gated_ratio(power, angle, np.pi / 2, 3.0, rate)[0] == pytest.approx(expected)
+    assert fault_indicators.gated_ratio(power, angle, np.pi / 2 + np.pi / 3, 3.0, rate)[0] < 1.0  # between
     still = np.full((1, n), 0.5)  # no pass: no evidence
     assert fault_indicators.gated_ratio(power, still, 1.0, 1.0, rate)[0] == 1.0
 
 
-def test_the_mesh_level_finds_a_tone_locked_to_the_wheel_and_refuses_a_step_that_misses_its_sidebands() -> (
-    None
-):
+def test_the_mesh_level_is_the_mesh_line_and_its_wheel_order_sidebands() -> None:
     rng = np.random.default_rng(0)
     angle = np.cumsum(rng.uniform(0.0, 0.004, size=(2, AUDIO_LEN)), axis=1)  # about 2.8 revolutions
-    audio = 0.3 * rng.normal(size=(2, AUDIO_LEN)) + np.cos(199.0 * angle)
-    first, count = mesh_orders("skid4")
-    levels = fault_indicators.mesh_level(audio, angle, first, 0.25, count)
-    meshes = first + 0.25 * np.arange(count)
-    best = meshes[np.argmax(levels, axis=1)]
-    assert np.all(np.abs(best - 199.0) <= 1.0)  # the mesh or a sideband on the tone: the same three lines
-    far = np.abs(meshes - 199.0) > 2.0
-    assert np.all(levels[:, meshes == 199.0][:, 0] > levels[:, far].max(axis=1) + 1.0)
-    with pytest.raises(ValueError, match="step"):
-        fault_indicators.mesh_level(audio, angle, first, 0.3, count)
+    noise = 0.3 * rng.normal(size=(2, AUDIO_LEN))
+    levels = {}
+    for tone in (197.0, 198.0, 199.0, 204.0):  # a lower sideband, the mesh, an upper sideband, a line beyond
+        audio = noise + np.cos(tone * angle)
+        levels[tone] = fault_indicators.mesh_level(audio, angle, 198.0)
+        lines = condition.order_lines(audio, angle, np.array([197.0, 198.0, 199.0]))
+        np.testing.assert_allclose(levels[tone], np.log(lines.sum(axis=1) * audio.std(axis=1) + 1e-12))
+    for tone in (197.0, 198.0, 199.0):
+        assert np.all(levels[tone] > levels[204.0] + 1.0), tone
 
 
 def _windows(n: int, seed: int, strike: float) -> Windows:
@@ -52,6 +54,7 @@ def _windows(n: int, seed: int, strike: float) -> Windows:
     speed = rng.uniform(1.0, 2.0, size=(n, 1, 4)) * 2 * np.pi
     odometry = speed * (np.arange(IMU_LEN) / IMU_RATE)[None, :, None]
     audio = rng.normal(size=(n, AUDIO_LEN, 2))
+    imu, imu6 = rng.normal(size=(n, IMU_LEN)), rng.normal(size=(n, IMU_LEN, 6))
     if strike > 0:
         lo, hi = envelope_band("flat_spot", AUDIO_RATE)
         t = np.arange(AUDIO_LEN) / AUDIO_RATE
@@ -63,19 +66,38 @@ def _windows(n: int, seed: int, strike: float) -> Windows:
                 audio[i, j:end, :] += strike * burst[: end - j, None]
     return Windows(
         audio=audio.astype(np.float32),
-        imu=rng.normal(size=(n, IMU_LEN)).astype(np.float32),
-        imu6=rng.normal(size=(n, IMU_LEN, 6)).astype(np.float32),
+        imu=imu.astype(np.float32),
+        imu6=imu6.astype(np.float32),
         odometry=odometry.astype(np.float32),
     )
 
 
-def test_the_order_reference_finds_a_strike_at_a_fixed_wheel_angle_it_was_not_told() -> None:
+def test_the_order_reference_finds_a_strike_at_a_fixed_wheel_angle_it_was_not_told(tmp_path: Path) -> None:
     train, val = _windows(120, 1, 0.0), _windows(40, 2, 0.0)
     nominal, faulty = _windows(40, 3, 0.0), _windows(40, 3, 3.0)  # the same windows, with the flat's strikes
     detector = OrderReference().fit(train, val)
     scores = np.r_[detector.score(nominal), detector.score(faulty)]
     assert roc_auc(np.r_[np.zeros(40), np.ones(40)].astype(int), scores) > 0.95
-    evidence = detector._kind_evidence(hypothesis_features(faulty))
-    assert np.median(evidence["flat_spot"]) > np.median(evidence["out_of_round"])
+    rarity = detector.evidence_rarity
+    evidence = detector._kind_evidence(faulty)
+    calibrated = {k: rarity[k].score(e[:, None]) for k, e in evidence.items()}
+    assert all(
+        np.median(calibrated["flat_spot"]) > np.median(v) for k, v in calibrated.items() if k != "flat_spot"
+    )
+    detector.save(tmp_path / "m.npz")
+    np.testing.assert_array_equal(OrderReference.load(tmp_path / "m.npz").score(faulty), scores[40:])
     with pytest.raises(WindowError, match="odometry"):
         detector.score(Windows(nominal.audio, nominal.imu, nominal.imu6))
+    assert nominal.odometry is not None
+    with pytest.raises(WindowError, match="4"):  # fit on four wheels
+        detector.score(Windows(nominal.audio, nominal.imu, nominal.imu6, nominal.odometry[:, :, :2]))
+
+
+def test_an_order_reference_file_without_a_kinds_distribution_is_refused(tmp_path: Path) -> None:
+    detector = OrderReference().fit(_windows(30, 1, 0.0), None)
+    header, arrays = detector._state()
+    save_npz(tmp_path / "m.npz", OrderReference.kind, OrderReference.format_version,
+             {**header, "threshold": 1.0, "threshold_source": "train"},
+             {k: v for k, v in arrays.items() if k != "evidence/bearing"})  # fmt: skip
+    with pytest.raises(ModelFormatError, match=r"m\.npz"):
+        OrderReference.load(tmp_path / "m.npz")

@@ -10,7 +10,7 @@ import pytest
 
 from benchmarks import condition, fault_indicators
 from benchmarks.methods._io import save_npz
-from benchmarks.methods.orders import OrderReference
+from benchmarks.methods.orders import OrderReference, revolution_bin
 from benchmarks.metrics import roc_auc
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, ModelFormatError, WindowError, Windows
 from sim.faults import envelope_band
@@ -78,9 +78,14 @@ def test_the_order_reference_finds_a_strike_at_a_fixed_wheel_angle_it_was_not_to
     detector = OrderReference().fit(train, val)
     scores = np.r_[detector.score(nominal), detector.score(faulty)]
     assert roc_auc(np.r_[np.zeros(40), np.ones(40)].astype(int), scores) > 0.95
-    rarity = detector.evidence_rarity
     evidence = detector._kind_evidence(faulty)
-    calibrated = {k: rarity[k].score(e[:, None]) for k, e in evidence.items()}
+    bins = revolution_bin(faulty)
+    calibrated = {
+        k: np.array(
+            [detector.evidence_rarity[k, b].score(np.array([[v]]))[0] for b, v in zip(bins, e, strict=True)]
+        )
+        for k, e in evidence.items()
+    }
     assert all(
         np.median(calibrated["flat_spot"]) > np.median(v) for k, v in calibrated.items() if k != "flat_spot"
     )
@@ -98,6 +103,6 @@ def test_an_order_reference_file_without_a_kinds_distribution_is_refused(tmp_pat
     header, arrays = detector._state()
     save_npz(tmp_path / "m.npz", OrderReference.kind, OrderReference.format_version,
              {**header, "threshold": 1.0, "threshold_source": "train"},
-             {k: v for k, v in arrays.items() if k != "evidence/bearing"})  # fmt: skip
+             {k: v for k, v in arrays.items() if k != "evidence/bearing/0"})  # fmt: skip
     with pytest.raises(ModelFormatError, match=r"m\.npz"):
         OrderReference.load(tmp_path / "m.npz")

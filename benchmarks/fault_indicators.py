@@ -54,6 +54,7 @@ INDICATORS: dict[str, tuple[str, ...]] = {
     "motor_degradation": ("mesh_level_audio",),
 }
 """The indicators read for each fault kind, in their feature columns' order (see the module)."""
+_NAMES = frozenset(name for names in INDICATORS.values() for name in names)
 PHASED: frozenset[str] = frozenset({"strike_audio", "strike_imu"})
 """The indicators that depend on the defect's angle (the others read the wheel's angle only, or none)."""
 
@@ -163,12 +164,16 @@ def indicators(prep: Prepared, angle: np.ndarray, phases: np.ndarray, order: flo
             )
         elif name == "once_per_rev_imu":
             assert prep.smooth is not None
-            lines = [condition.log_lines(prep.smooth[:, c], angle, np.array([1.0]))[:, 0] for c in
-                     range(prep.smooth.shape[1])]  # fmt: skip
+            one = np.array([1.0])
+            lines = [
+                condition.log_lines(channel, angle, one)[:, 0] for channel in prep.smooth.transpose(1, 0, 2)
+            ]
             column = np.repeat(np.mean(lines, axis=0)[:, None], count, axis=1)
-        else:  # vibration_imu
+        elif name == "vibration_imu":
             assert prep.vibration is not None
             column = np.repeat(prep.vibration[:, None], count, axis=1)
+        else:
+            raise ValueError(f"indicator {name!r} is unknown; allowed: {', '.join(sorted(_NAMES))}")
         columns.append(column.reshape(k, count))
     return np.stack(columns, axis=2)
 

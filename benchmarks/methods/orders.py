@@ -109,12 +109,16 @@ class OrderReference(WindowDetector):
 
     def _kind_evidence(self, batch: Windows) -> dict[str, np.ndarray]:
         """For each kind, (N,) the largest summed rarity of its indicators over its hypotheses."""
-        if self.wheels and batch.odometry is not None and batch.odometry.shape[2] != self.wheels:
+        if batch.odometry is not None and batch.odometry.shape[2] != self.wheels:
             raise WindowError(
                 f"odometry has {batch.odometry.shape[2]} wheels; the model was fit on {self.wheels}"
             )
+        return self._evidence(hypothesis_features(batch, self.model))
+
+    def _evidence(self, features: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """`_kind_evidence` of a batch's `hypothesis_features`."""
         out = {}
-        for kind, x in hypothesis_features(batch, self.model).items():
+        for kind, x in features.items():
             n, h, f = x.shape
             out[kind] = self.indicator_rarity[kind].score(x.reshape(n * h, f)).reshape(n, h).max(axis=1)
         return out
@@ -126,7 +130,7 @@ class OrderReference(WindowDetector):
         self.indicator_rarity = {k: Rarity.fit(x.reshape(-1, x.shape[-1])) for k, x in features.items()}
         bins = revolution_bin(train)
         self.evidence_rarity = {}
-        for kind, evidence in self._kind_evidence(train).items():
+        for kind, evidence in self._evidence(features).items():
             for b in range(len(REVOLUTION_BINS) + 1):
                 own = evidence[bins == b]
                 rows = own if own.size >= MIN_BIN_WINDOWS else evidence

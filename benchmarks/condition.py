@@ -57,10 +57,11 @@ def order_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndar
     return np.asarray(np.abs(demod) / scale[:, None])
 
 
-def revolutions(angle: np.ndarray) -> np.ndarray:
-    """(N,) revolutions a wheel turned over each (N, n) angle trace (rad), whichever way it turned."""
+def revolutions(angle: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Revolutions a wheel turned over each angle trace (rad) along `axis` (time), whichever way it turned:
+    (N,) of (N, n) traces, (N, W) of (N, n, W) with axis=1."""
     a = np.atleast_2d(np.asarray(angle, dtype=np.float64))
-    return np.asarray(np.abs(np.diff(a, axis=-1)).sum(axis=-1) / (2 * np.pi))
+    return np.asarray(np.abs(np.diff(a, axis=axis)).sum(axis=axis) / (2 * np.pi))
 
 
 SPLIT_HZ = 4.0

@@ -33,7 +33,7 @@ import numpy as np
 
 import sim
 import synth_audio
-from benchmarks import fault_indicators
+from benchmarks import condition, fault_indicators
 from benchmarks.audit.report import ProbeRow
 from benchmarks.dataset import MIN_FAULT_REVOLUTIONS, Dataset, WindowRow, episode_audio_config
 from benchmarks.episode import read_episode, read_trace
@@ -95,7 +95,7 @@ def _cut(x: np.ndarray, starts: np.ndarray, rate: float, length: int) -> np.ndar
 def _turned(sig: Signals, starts: np.ndarray) -> np.ndarray:
     """(k, W) revolutions each wheel turned (either way) in the windows at `starts` (s)."""
     angle = _cut(sig.angle, np.asarray(starts, dtype=np.float64), IMU_RATE, IMU_LEN)  # (k, 400, W)
-    return np.asarray(np.abs(np.diff(angle, axis=1)).sum(axis=1) / (2 * np.pi))
+    return condition.revolutions(angle, axis=1)
 
 
 @dataclass(frozen=True)

@@ -87,8 +87,8 @@ def _chunk_features(batch: Windows, model: str) -> dict[str, np.ndarray]:
 def revolution_bin(batch: Windows) -> np.ndarray:
     """(N,) the `REVOLUTION_BINS` bin (0 .. len) of each window: how far its farthest-turning wheel turned."""
     assert batch.odometry is not None
-    turned = [condition.revolutions(batch.odometry[:, :, w]) for w in range(batch.odometry.shape[2])]
-    return np.asarray(np.digitize(np.max(turned, axis=0), REVOLUTION_BINS))
+    turned = condition.revolutions(batch.odometry, axis=1).max(axis=1)
+    return np.asarray(np.digitize(turned, REVOLUTION_BINS))
 
 
 class OrderReference(WindowDetector):

@@ -50,3 +50,5 @@ def test_band_pass_keeps_the_tones_inside_the_band_only() -> None:
 def test_revolutions_count_either_way() -> None:
     angle = np.r_[np.linspace(0, 2 * np.pi, 50), np.linspace(2 * np.pi, 0, 50)][None]
     assert condition.revolutions(angle)[0] == pytest.approx(2.0, rel=1e-9)
+    wheels = np.stack([angle[0], 0.5 * angle[0]], axis=1)[None]  # (1, n, 2): time along axis 1
+    np.testing.assert_allclose(condition.revolutions(wheels, axis=1), [[2.0, 1.0]], rtol=1e-9)

@@ -46,8 +46,8 @@ def band_pass(x: np.ndarray, rate: float, band: tuple[float, float]) -> np.ndarr
 def order_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
     """(N, K) amplitude of the lines at `orders` (K,) of (N, n) signals sampled at wheel angles `angle` (rad).
 
-    Each line is |mean((x - mean x) exp(-i k angle))| / std(x): 0.5 for a pure tone locked to the angle at
-    order k, about 1 / sqrt(n) for noise, and 0 when the wheel stands still (the line needs turning).
+    Each line is |mean((x - mean x) exp(-i k angle))| / std(x): 1 / sqrt(2) for a pure tone locked to the
+    angle at order k, about 1 / sqrt(n) for noise, and 0 when the wheel stands still (the line needs turning).
     """
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
     centred = x - x.mean(axis=-1, keepdims=True)

@@ -6,28 +6,37 @@ and the fault-aware reference detector (`benchmarks.methods.orders`: the wheel e
 and defect angle in turn):
 
 - strikes (flat spot, bearing, loose hub): the response within `STRIKE_GATE_S` of each pass of the defect
-  (the angle crossing phase + 2 pi j / order) over the rest of the window (`gated_ratio`), in the audio's
-  squared envelope in the kind's band (`sim.faults.envelope_band`) and in the motion power (above 0.5 Hz) of
-  the IMU: the time-synchronous average of the defect's strike against everything else;
-- once-per-revolution motion (out-of-round wheel, loose hub): the order-1 line of the IMU's smooth motion
-  (below `condition.SPLIT_HZ`);
+  (the angle crossing phase + 2 pi j / order) over the rest of the window, every pass asked to stand out
+  (`gated_ratio`), in the audio's squared envelope in the kind's band (`sim.faults.envelope_band`) at the
+  microphone nearest the wheel, and in the chassis' roll and pitch rates (`TILT_CHANNELS`): the
+  time-synchronous average of the defect's strike against everything else;
+- where a strike comes from: how much more it stands out at the wheel's own microphone than at the other
+  (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a sound from
+  the other side or from the room does not);
+- an out-of-round wheel's corner rising and falling once per revolution: the order-1 lines of the vertical
+  acceleration, roll and pitch rates (below `condition.SPLIT_HZ`), added with the signs and phases a rise of
+  that wheel's corner gives them and read in phase with the defect (`corner_rise`);
+- a loose hub's once-per-revolution wobble: the order-1 line of the IMU's smooth motion;
 - a loose hub's rattle: the IMU's vibration power above `condition.SPLIT_HZ`;
 - worn gears: the level of the gear-mesh line with its wheel-order sidebands (mesh -+ 1 order) in the raw
   audio (`mesh_level`), the tone's amplitude tracked by the wheel's angle (condition monitoring's gear-mesh
   amplitude).
 
-Each IMU indicator is the mean of its logarithm over the seven channels (z-velocity, accelerometer and
-gyroscope xyz): the chassis' response, however a strike spreads over the axes, as one indicator (seven
-separate ones would each add a chance of a nominal extreme, and bury the audio's evidence).
+Each IMU indicator is the mean of its logarithm over its channels: the chassis' response, however it spreads
+over the axes, as one indicator (separate ones would each add a chance of a nominal extreme, and bury the
+audio's evidence). A defect at one wheel lifts and drops one corner of the chassis; the IMU near the centre
+feels that mostly as roll and pitch, where a bump under the whole robot or its own acceleration shows in every
+axis; so a flat's strikes are read in the roll and pitch rates only, and an out-of-round wheel's rise in the
+motion the rise of its own corner makes (`WheelSite`).
 
-Which indicators each kind reads was chosen on dev datasets (seeds never audited): an indicator whose
-evidence is at chance for a kind only adds nominal extremes to its score. On dev, the chassis did not carry a
-bearing's ball strikes (its IMU strike indicator at chance, the audio's far above) nor a flat's
-once-per-revolution motion (the rigid four-wheel chassis rests on three wheels while one rolls over its
-flat), and an out-of-round wheel did not modulate the rolling sound. A worn pair's mesh line over the lines
-around it saturated at low severity (the whine's own wheel- and shaft-rate modulation lifts its neighbours),
-where the mesh group's level grows with the wear; its motor-shaft sidebands and the IMU's shaft-order line
-were weaker.
+Which indicators each kind reads, and on which channels, was chosen on dev datasets (seeds never audited):
+an indicator whose evidence is at chance for a kind only adds nominal extremes to its score. On dev, the
+chassis did not carry a bearing's ball strikes (its IMU strike indicator at chance, the audio's far above) nor
+a flat's once-per-revolution motion (the rigid four-wheel chassis rests on three wheels while one rolls over
+its flat), and an out-of-round wheel did not modulate the rolling sound. A worn pair's mesh line over the
+lines around it saturated at low severity (the whine's own wheel- and shaft-rate modulation lifts its
+neighbours), where the mesh group's level grows with the wear; its motor-shaft sidebands and the IMU's
+shaft-order line were weaker.
 
 `Rarity` turns indicators into evidence: each one's upper tail under its distribution over nominal windows.
 """
@@ -46,35 +55,103 @@ from sim.faults import envelope_band
 STRIKE_GATE_S = 0.05
 """How long before and after a pass of the defect its response is read, s (a flat's dip before its slap,
 the tyre's and chassis' ring after a strike)."""
+TILT_CHANNELS = (4, 5)
+"""The roll and pitch rates (gyroscope x and y) among the seven IMU channels (z-velocity, accelerometer xyz,
+gyroscope xyz): how the chassis feels one corner rise or strike."""
+RISE_CHANNELS = (3, 4, 5)
+"""The vertical acceleration, roll and pitch rates among the seven IMU channels (`corner_rise`)."""
 INDICATORS: dict[str, tuple[str, ...]] = {
-    "flat_spot": ("strike_audio", "strike_imu"),
-    "bearing": ("strike_audio",),
-    "loose_wheel": ("strike_audio", "once_per_rev_imu", "vibration_imu"),
-    "out_of_round": ("once_per_rev_imu",),
+    "flat_spot": ("strike_audio", "strike_side", "strike_tilt"),
+    "bearing": ("strike_audio", "strike_side"),
+    "loose_wheel": ("strike_audio", "strike_side", "once_per_rev_imu", "vibration_imu"),
+    "out_of_round": ("corner_rise",),
     "motor_degradation": ("mesh_level_audio",),
 }
 """The indicators read for each fault kind, in their feature columns' order (see the module)."""
 _NAMES = frozenset(name for names in INDICATORS.values() for name in names)
-PHASED: frozenset[str] = frozenset({"strike_audio", "strike_imu"})
+PHASED: frozenset[str] = frozenset({"strike_audio", "strike_side", "strike_tilt", "corner_rise"})
 """The indicators that depend on the defect's angle (the others read the wheel's angle only, or none)."""
 
 
 def gated_ratio(power: np.ndarray, angle: np.ndarray, phase: float, order: float, rate: float) -> np.ndarray:
-    """(k,) mean of (k, n) `power` sampled at `rate` within `STRIKE_GATE_S` of each pass of a defect at
-    wheel angle `phase` (rad) with `order` events per revolution (the angle (k, n) passing phase + 2 pi j /
-    order) over its mean elsewhere; 1 for a window without a pass (floored at 1e-3)."""
+    """(k,) how far (k, n) `power` sampled at `rate` stands out at each pass of a defect at wheel angle
+    `phase` (rad) with `order` events per revolution (the angle (k, n) passing phase + 2 pi j / order): the
+    geometric mean over the passes of the power's mean within `STRIKE_GATE_S` of the pass over its mean
+    outside every pass' gate; 1 for a window without a pass (each pass' ratio floored at 1e-3).
+
+    A defect strikes at every pass and a nominal transient (a floor joint, a footstep) at one: the geometric
+    mean asks every pass to stand out, where the mean over all gates is carried by one loud pass."""
     cycles = np.floor(order * (angle - phase) / (2 * np.pi))
-    hit = np.zeros(angle.shape, dtype=np.int64)
+    hit = np.zeros(angle.shape, dtype=bool)
     hit[:, 1:] = cycles[:, 1:] != cycles[:, :-1]
+    k, n = angle.shape
     span = max(1, round(STRIKE_GATE_S * rate))
-    counts = np.concatenate([np.zeros((len(hit), span + 1), np.int64), np.cumsum(hit, axis=1)], axis=1)
+    counts = np.concatenate([np.zeros((k, span + 1), np.int64), np.cumsum(hit, axis=1)], axis=1)
     counts = np.concatenate([counts, np.repeat(counts[:, -1:], span, axis=1)], axis=1)
-    n = angle.shape[1]
-    gate = (counts[:, 2 * span + 1 : 2 * span + 1 + n] - counts[:, :n]) > 0
-    inside = (power * gate).sum(axis=1) / np.maximum(gate.sum(axis=1), 1)
-    outside = (power * ~gate).sum(axis=1) / np.maximum((~gate).sum(axis=1), 1)
-    ratio = np.where(gate.any(axis=1), inside / np.maximum(outside, 1e-30), 1.0)
-    return np.asarray(np.maximum(ratio, 1e-3))
+    outside_gates = (counts[:, 2 * span + 1 : 2 * span + 1 + n] - counts[:, :n]) == 0
+    outside = (power * outside_gates).sum(axis=1) / np.maximum(outside_gates.sum(axis=1), 1)
+    total = np.concatenate([np.zeros((k, 1)), np.cumsum(power, axis=1)], axis=1)
+    rows, at = np.nonzero(hit)
+    lo, hi = np.maximum(at - span, 0), np.minimum(at + span + 1, n)
+    inside = (total[rows, hi] - total[rows, lo]) / (hi - lo)
+    log_ratio = np.log(np.maximum(inside / np.maximum(outside[rows], 1e-30), 1e-3))
+    passes = np.bincount(rows, minlength=k)
+    mean_log = np.bincount(rows, log_ratio, minlength=k) / np.maximum(passes, 1)
+    return np.asarray(np.where(passes > 0, np.exp(mean_log), 1.0))
+
+
+@dataclass(frozen=True)
+class WheelSite:
+    """Where a wheel sits on the robot, as its indicators need it."""
+
+    microphone: int
+    """The microphone nearest the wheel (0 left, 1 right)."""
+    lateral: float
+    """+1 for a wheel left of the wheels' centre, -1 right of it: which way its corner's rise rolls the
+    chassis."""
+    longitudinal: float
+    """+1 for a wheel ahead of the wheels' centre, -1 behind it, 0 beside it (a two-wheel robot's): which way
+    its corner's rise pitches the chassis."""
+
+
+def wheel_sites(wheel_pos: np.ndarray, mic_pos: np.ndarray) -> list[WheelSite]:
+    """The `WheelSite` of each of the wheels at `wheel_pos` (W, 3), the microphones at `mic_pos` (2, 3), both
+    in the robot's base frame (x forward, y left)."""
+    wheels = np.asarray(wheel_pos, dtype=np.float64)
+    distance = np.linalg.norm(wheels[:, None, :] - np.asarray(mic_pos)[None, :, :], axis=-1)
+    offset = wheels[:, :2] - wheels[:, :2].mean(axis=0)
+    sign = np.where(np.abs(offset) > 0.01, np.sign(offset), 0.0)  # within 1 cm: beside the centre
+    return [
+        WheelSite(int(np.argmin(distance[w])), float(sign[w, 1]), float(sign[w, 0]))
+        for w in range(len(wheels))
+    ]
+
+
+def corner_rise(smooth: np.ndarray, angle: np.ndarray, phases: np.ndarray, site: WheelSite) -> np.ndarray:
+    """(k, P) the once-per-revolution rise of `site`'s corner in (k, 3, m) `RISE_CHANNELS` motion, read in
+    phase with a runout at each of the wheel angles `phases`: the mean over the channels of each one's
+    order-1 line (`condition.order_lines` before the magnitude: relative to the channel's deviation), turned
+    by the phase a rise gives that channel.
+
+    `sim.engine` moves an out-of-round wheel's tread off its axle towards wheel angle phi, which lifts the
+    axle by e sin(angle - phi). Its corner's rise pushes the vertical acceleration by -e w^2 sin(angle - phi),
+    rolls the chassis at a rate of `lateral` x e w cos(angle - phi) / track and pitches it at -`longitudinal`
+    x e w cos(angle - phi) / wheelbase, w the wheel's signed rate (the rates change sign when the wheel rolls
+    backwards, the acceleration does not): order-1 lines of (phase-relative) i / 2, +-`lateral` / 2 and
+    -+`longitudinal` / 2 per unit. Each line is turned by the conjugate of its own, so a rise adds up in phase
+    on every channel; a channel the corner does not move (a wheel beside the centre does not pitch it) is left
+    out. Noise adds up in no fixed phase: 0 on average. Chosen on dev over the magnitude of each channel's
+    line (the phase and the signs are what a corner's rise has and the chassis' other motion has not)."""
+    rolling = np.where(angle[:, -1] >= angle[:, 0], 1.0, -1.0)  # (k,) forwards or backwards
+    weights = np.stack(
+        [np.full(len(angle), -1j), site.lateral * rolling, -site.longitudinal * rolling], axis=1
+    )
+    used = np.abs(weights[0]) > 0
+    centred = smooth - smooth.mean(axis=-1, keepdims=True)
+    scale = np.maximum(centred.std(axis=-1), 1e-30)  # (k, 3)
+    demod = np.einsum("kcm,km->kc", centred, np.exp(-1j * angle)) / smooth.shape[-1] / scale
+    line = (demod[:, used] * weights[:, used]).sum(axis=1) / used.sum()  # (k,) rise x exp(-i phi) / 2
+    return np.asarray(np.real(line[:, None] * np.exp(1j * np.asarray(phases))[None, :]))
 
 
 def mesh_level(audio: np.ndarray, angle: np.ndarray, mesh: float) -> np.ndarray:
@@ -99,69 +176,91 @@ class Prepared:
     kind: str
     """Fault kind (which `INDICATORS`)."""
     audio: np.ndarray
-    """(k, n) mono audio at `msvdd.contract.AUDIO_RATE`."""
+    """(k, n) mono audio (the microphones' sum) at `msvdd.contract.AUDIO_RATE`."""
     envelope: np.ndarray | None
-    """(k, e) the audio's squared envelope in the kind's band, block means (strikes)."""
+    """(k, 2, e) each microphone's squared envelope in the kind's band, block means (strikes)."""
     envelope_time: np.ndarray | None
     """(e,) the envelope's sample times (block centres), s."""
-    motion: np.ndarray | None
-    """(k, 7, m) the IMU's motion power above 0.5 Hz (strikes)."""
+    tilt: np.ndarray | None
+    """(k, 2, m) the motion power (above 0.5 Hz) of the `TILT_CHANNELS` (strikes)."""
     smooth: np.ndarray | None
-    """(k, 7, m) the IMU's smooth motion below `condition.SPLIT_HZ` (once-per-revolution motion)."""
+    """(k, 7, m) the smooth motion below `condition.SPLIT_HZ` (once-per-revolution motion)."""
+    rise: np.ndarray | None
+    """(k, 3, m) the smooth motion of the `RISE_CHANNELS` (`corner_rise`)."""
     vibration: np.ndarray | None
     """(k,) mean over the channels of the log of the IMU's vibration power above `condition.SPLIT_HZ`."""
 
 
 def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
-    """Filter (k, n) mono audio and the (k, 7, m) IMU channels for `kind`'s indicators."""
+    """Filter (k, n, 2) two-microphone audio and the (k, 7, m) IMU channels for `kind`'s indicators."""
     wanted = INDICATORS[kind]
-    envelope = envelope_time = motion = smooth = vibration = None
-    if "strike_audio" in wanted:
-        envelope, envelope_time = condition.block_envelope(audio, AUDIO_RATE, envelope_band(kind, AUDIO_RATE))
-    if "strike_imu" in wanted:
-        motion = condition.band_pass(imu7, IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
+    envelope = envelope_time = tilt = smooth = rise = vibration = None
+    if "strike_audio" in wanted or "strike_side" in wanted:
+        stacked = np.moveaxis(audio, -1, 1).reshape(-1, audio.shape[1])  # (2k, n): each microphone
+        band = envelope_band(kind, AUDIO_RATE)
+        envelope, envelope_time = condition.block_envelope(stacked, AUDIO_RATE, band)
+        envelope = envelope.reshape(len(audio), 2, -1)
+    if "strike_tilt" in wanted:
+        tilt = condition.band_pass(imu7[:, TILT_CHANNELS], IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
     if "once_per_rev_imu" in wanted:
         smooth = condition.band_pass(imu7, IMU_RATE, (0.3, condition.SPLIT_HZ))
+    if "corner_rise" in wanted:
+        rise = condition.band_pass(imu7[:, RISE_CHANNELS], IMU_RATE, (0.3, condition.SPLIT_HZ))
     if "vibration_imu" in wanted:
         power = condition.band_pass(imu7, IMU_RATE, (condition.SPLIT_HZ, IMU_RATE / 2)) ** 2
         vibration = np.mean(
             [np.log(power[:, c].mean(axis=-1) + 1e-20) for c in range(power.shape[1])], axis=0
         )
-    return Prepared(kind, audio, envelope, envelope_time, motion, smooth, vibration)
+    return Prepared(kind, audio.sum(axis=-1), envelope, envelope_time, tilt, smooth, rise, vibration)
 
 
-def indicators(prep: Prepared, angle: np.ndarray, phases: np.ndarray, order: float) -> np.ndarray:
+def indicators(
+    prep: Prepared, angle: np.ndarray, phases: np.ndarray, order: float, site: WheelSite
+) -> np.ndarray:
     """(k, P, F) the `INDICATORS` of `prep.kind` of the prepared windows (columns in that order), looked at
-    through a wheel at angles `angle` (k, `IMU_LEN`) with a defect at each of the wheel angles `phases` (P,)
-    (rad) and `order` events per revolution (for worn gears, the gear-mesh order; its level does not depend on
-    the defect's angle)."""
+    through a wheel at angles `angle` (k, `IMU_LEN`) sitting at `site`, with a defect at each of the wheel
+    angles `phases` (P,) (rad) and `order` events per revolution (for worn gears, the gear-mesh order; its
+    level does not depend on the defect's angle)."""
     phases = np.atleast_1d(np.asarray(phases, dtype=np.float64))
     k, count = angle.shape[0], phases.size
+    strikes: dict[int, np.ndarray] = {}
+
+    def strike_audio(mic: int) -> np.ndarray:
+        """(k, P) log strike ratio at microphone `mic`."""
+        if mic not in strikes:
+            assert prep.envelope is not None and prep.envelope_time is not None
+            env_angle = resampled(angle, prep.envelope_time)
+            rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
+            envelope = prep.envelope[:, mic]
+            strikes[mic] = np.stack(
+                [np.log(gated_ratio(envelope, env_angle, p, order, rate)) for p in phases], axis=1
+            )
+        return strikes[mic]
+
     columns: list[np.ndarray] = []
     for name in INDICATORS[prep.kind]:
         if name == "mesh_level_audio":
             audio_angle = resampled(angle, np.arange(prep.audio.shape[-1]) / AUDIO_RATE)
             column = np.repeat(mesh_level(prep.audio, audio_angle, order)[:, None], count, axis=1)
         elif name == "strike_audio":
-            assert prep.envelope is not None and prep.envelope_time is not None
-            env_angle = resampled(angle, prep.envelope_time)
-            rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
-            column = np.stack(
-                [np.log(gated_ratio(prep.envelope, env_angle, p, order, rate)) for p in phases], axis=1
-            )
-        elif name == "strike_imu":
-            assert prep.motion is not None
-            channels = range(prep.motion.shape[1])
+            column = strike_audio(site.microphone)
+        elif name == "strike_side":
+            column = strike_audio(site.microphone) - strike_audio(1 - site.microphone)
+        elif name == "strike_tilt":
+            assert prep.tilt is not None
+            channels = range(prep.tilt.shape[1])
             column = np.stack(
                 [
                     np.mean(
-                        [np.log(gated_ratio(prep.motion[:, c], angle, p, order, IMU_RATE)) for c in channels],
-                        0,
+                        [np.log(gated_ratio(prep.tilt[:, c], angle, p, order, IMU_RATE)) for c in channels], 0
                     )
                     for p in phases
                 ],
                 axis=1,
             )
+        elif name == "corner_rise":
+            assert prep.rise is not None
+            column = corner_rise(prep.rise, angle, phases, site)
         elif name == "once_per_rev_imu":
             assert prep.smooth is not None
             one = np.array([1.0])

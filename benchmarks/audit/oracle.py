@@ -37,7 +37,7 @@ from benchmarks import condition, fault_indicators
 from benchmarks.audit.report import ProbeRow
 from benchmarks.dataset import MIN_FAULT_REVOLUTIONS, Dataset, WindowRow, episode_audio_config
 from benchmarks.episode import read_episode, read_trace
-from benchmarks.fault_indicators import Rarity
+from benchmarks.fault_indicators import Rarity, WheelSite
 from benchmarks.uncertainty import Interval, auc_interval
 from msvdd import preprocess
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE
@@ -112,11 +112,18 @@ class View:
     """Defect events per revolution (`sim.trace.FaultRecord.defect_order`)."""
     shaft: float
     """Motor shaft revolutions per wheel revolution (worn gears' sidebands and torque ripple)."""
+    site: WheelSite
+    """Where the wheel sits on the robot (`fault_indicators.wheel_sites`)."""
 
 
 def fault_view(record: FaultRecord, robot: RobotInfo) -> View:
     """How the oracle looks at a window of a fault episode: through its defect."""
-    return View(record.kind, record.wheel, record.phase, record.defect_order, float(robot.gear_ratio))
+    site = _sites(robot)[record.wheel]
+    return View(record.kind, record.wheel, record.phase, record.defect_order, float(robot.gear_ratio), site)
+
+
+def _sites(robot: RobotInfo) -> list[WheelSite]:
+    return fault_indicators.wheel_sites(robot.wheel_pos_body, robot.mic_pos_body)
 
 
 def nominal_views(kind: str, robot: RobotInfo) -> list[View]:
@@ -127,19 +134,23 @@ def nominal_views(kind: str, robot: RobotInfo) -> list[View]:
     count = 1 if kind == "motor_degradation" else NOMINAL_PHASES
     phases = 2 * np.pi * np.arange(count) / count
     shaft = float(robot.gear_ratio)
-    return [View(kind, w, float(p), order, shaft) for w in range(len(robot.wheel_names)) for p in phases]
+    sites = _sites(robot)
+    return [
+        View(kind, w, float(p), order, shaft, sites[w]) for w in range(len(robot.wheel_names)) for p in phases
+    ]
 
 
 def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list[np.ndarray]:
     """(k, F) oracle features of the windows at `starts` (s), looked at through each of `views` (all of one
     fault kind; `fault_indicators.indicators`)."""
     starts = np.asarray(starts, dtype=np.float64)
-    audio = _cut(sig.audio, starts, AUDIO_RATE, AUDIO_LEN).sum(axis=-1)  # (k, 8820) mono
+    audio = _cut(sig.audio, starts, AUDIO_RATE, AUDIO_LEN)  # (k, 8820, 2)
     channels = _cut(sig.imu7, starts, IMU_RATE, IMU_LEN).transpose(0, 2, 1)  # (k, 7, 400)
     prep = fault_indicators.prepare(views[0].kind, audio, channels)
     angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
     return [
-        fault_indicators.indicators(prep, angles[v.wheel], np.array([v.phase]), v.order)[:, 0] for v in views
+        fault_indicators.indicators(prep, angles[v.wheel], np.array([v.phase]), v.order, v.site)[:, 0]
+        for v in views
     ]
 
 
@@ -255,14 +266,15 @@ ORACLE_PROBE = "privileged oracle (true wheel angle, defect angle and order)"
 """The oracle probe's name in the audit table."""
 CONTROL_PROBE = "oracle on the same episodes re-simulated at severity 0"
 """The control probe's name."""
-GRADIENT_PROBE = "oracle AUC at severity >= 0.75 less at < 0.5"
-"""The severity gradient probe's name: a more severe defect must be easier to find."""
+GRADIENT_PROBE = "oracle evidence at severity >= 0.75 over < 0.5"
+"""The severity gradient probe's name: a more severe defect must stand out further (the median score of the
+top bin's fault windows over the bottom bin's; an AUC near 1 in both bins no longer tells them apart)."""
 
 
 def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
     """The audit's `oracle` rows: per fault kind its AUC overall and per severity bin (the top bin with the
-    floor `ORACLE_FLOOR`), the severity gradient (top bin over the bottom one, at least 0) and the control
-    (two-sided, at most `CONTROL_LIMIT`)."""
+    floor `ORACLE_FLOOR`), the severity gradient (`GRADIENT_PROBE`: the top bin's median score over the bottom
+    one's, at least 0) and the control (two-sided, at most `CONTROL_LIMIT`)."""
     rows: list[ProbeRow] = []
     for s in scored:
         bins = np.array([severity_bin(v) for v in s.positive_severity])
@@ -282,10 +294,11 @@ def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
                 )
             )  # fmt: skip
         if top in aucs and bottom in aucs:
+            high, low = (float(np.median(s.positive[bins == b])) for b in (top, bottom))
             rows.append(
                 ProbeRow(
-                    "oracle", GRADIENT_PROBE, f"sub:{s.kind}", aucs[top] - aucs[bottom], None, "auc",
-                    f"{aucs[top]:.3f} - {aucs[bottom]:.3f}", floor=0.0,
+                    "oracle", GRADIENT_PROBE, f"sub:{s.kind}", high - low, None, "evidence",
+                    f"median {high:.2f} - {low:.2f}; AUC {aucs[top]:.3f} - {aucs[bottom]:.3f}", floor=0.0,
                 )
             )  # fmt: skip
         if s.control is not None:

@@ -53,7 +53,8 @@ class ProbeRow:
     limit: float | None
     """The largest figure allowed, or None (only reported, or bounded by `floor` alone)."""
     unit: str
-    """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`, `dB`."""
+    """What `figure` is: `auc`, `auc2` (max(AUC, 1 - AUC)), `share`, `half-width`, `acf`, `dB`, `evidence`
+    (a difference of the oracle's scores: summed -log10 tail probabilities)."""
     detail: str = ""
     """Context for a reader: the raw AUC, counts, an interval."""
     skipped: str = ""

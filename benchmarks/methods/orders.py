@@ -8,7 +8,9 @@ know which wheel is faulty, at which angle its defect meets the floor, nor which
 tests every hypothesis in turn and reports the most significant:
 
 - a hypothesis is a fault kind on a wheel with its defect at one of `PHASES` evenly spaced angles (a strike's
-  indicators depend on the defect's angle; the others on the wheel only, the vibration on neither);
+  indicators depend on the defect's angle; the others on the wheel only, the vibration on neither); a wheel's
+  strikes are read at the microphone nearest it and its corner's rise with the signs its place gives it, on
+  the robot model's nominal layout (`robot_wheel_sites`), which a robot team knows;
 - the orders are the drive train's (`sim.faults.bpfo_order` with the middle of the balls' slip range; the
   gear-mesh order pinion teeth x gear ratio), a robot team knows its own robot model. The encoders count the
   motor shaft and the firmware converts with the nominal gear ratio (`sim.odometry`), so in the encoder's
@@ -31,6 +33,7 @@ refused.
 
 from __future__ import annotations
 
+import functools
 from typing import Any, Self
 
 import numpy as np
@@ -40,7 +43,8 @@ from benchmarks.fault_indicators import INDICATORS, PHASED, Rarity
 from benchmarks.methods.base import WindowDetector
 from msvdd.contract import ModelFormatError, WindowError, Windows
 from sim.faults import BEARING_SLIP, bpfo_order
-from sim.robot import DRIVE_TRAINS
+from sim.robot import DRIVE_TRAINS, build_robot
+from sim.scenario import Unit
 
 PHASES = 8
 """Defect angles (evenly spaced over one defect period) each strike hypothesis is tested at."""
@@ -66,8 +70,9 @@ def hypothesis_features(batch: Windows, model: str = "skid4") -> dict[str, np.nd
 def _chunk_features(batch: Windows, model: str) -> dict[str, np.ndarray]:
     assert batch.odometry is not None and batch.imu6 is not None
     imu7 = np.concatenate([batch.imu[:, :, None], batch.imu6], axis=2).transpose(0, 2, 1).astype(np.float64)
-    audio = batch.audio.astype(np.float64).sum(axis=-1)
+    audio = batch.audio.astype(np.float64)
     angles = [batch.odometry[:, :, w].astype(np.float64) for w in range(batch.odometry.shape[2])]
+    sites = robot_wheel_sites(model)
     drive = DRIVE_TRAINS[model]
     out: dict[str, np.ndarray] = {}
     for kind in INDICATORS:
@@ -79,9 +84,17 @@ def _chunk_features(batch: Windows, model: str) -> dict[str, np.ndarray]:
             count = PHASES if PHASED.intersection(INDICATORS[kind]) else 1
         phases = 2 * np.pi * np.arange(count) / (count * order)
         out[kind] = np.concatenate(
-            [fault_indicators.indicators(prep, a, phases, order) for a in angles], axis=1
+            [fault_indicators.indicators(prep, a, phases, order, sites[w]) for w, a in enumerate(angles)],
+            axis=1,
         )
     return out
+
+
+@functools.cache
+def robot_wheel_sites(model: str) -> tuple[fault_indicators.WheelSite, ...]:
+    """Each wheel's `fault_indicators.WheelSite` on the robot `model`'s nominal layout."""
+    info = build_robot(Unit(model=model, variation=0.0)).info
+    return tuple(fault_indicators.wheel_sites(info.wheel_pos_body, info.mic_pos_body))
 
 
 def revolution_bin(batch: Windows) -> np.ndarray:
@@ -96,7 +109,7 @@ class OrderReference(WindowDetector):
     calibrated per revolution bin."""
 
     kind = "order-reference"
-    format_version = 2
+    format_version = 3
 
     def __init__(self, model: str = "skid4") -> None:
         super().__init__()

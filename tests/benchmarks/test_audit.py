@@ -239,8 +239,9 @@ def test_the_oracle_reads_one_column_per_indicator_of_each_kind() -> None:
     angle = np.outer(np.arange(m) / 200.0, 2 * np.pi * np.array([1.0, 1.1, 0.9, 1.2]))
     sig = oracle.Signals(rng.normal(size=(n, 2)), rng.normal(size=(m, 7)), angle)
     starts = np.array([0.0, 1.5, 3.5])
+    site = fault_indicators.WheelSite(0, 1.0, 1.0)
     for kind, names in fault_indicators.INDICATORS.items():
-        views = [oracle.View(kind, w, 0.3, 3.0 if kind == "bearing" else 1.0, 30.0) for w in (0, 2)]
+        views = [oracle.View(kind, w, 0.3, 3.0 if kind == "bearing" else 1.0, 30.0, site) for w in (0, 2)]
         feats = oracle.window_features(sig, starts, views)
         assert [f.shape for f in feats] == [(3, len(names))] * 2, kind
         assert all(np.isfinite(f).all() for f in feats)
@@ -277,3 +278,18 @@ def test_the_oracle_looks_at_each_nominal_episode_through_its_own_robot_unit(
     nominal = {r.episode for split in ("train", "test") for r in data.rows(split) if r.kind == "normal"}
     own = {read_trace(tiny_dataset / e).robot.gear_ratio for e in nominal}
     assert set(seen) == own and len(own) > 1
+
+
+def test_the_severity_gradient_compares_how_far_the_bins_stand_out_not_their_auc() -> None:
+    negative = np.linspace(0.0, 1.0, 50)  # nominal scores up to 1
+    severity = np.repeat([0.3, 0.9], 20)
+    for low, high, passes in ((5.0, 9.0, True), (9.0, 5.0, False)):
+        positive = np.where(severity > 0.5, high, low) + np.tile(np.linspace(0.0, 0.5, 20), 2)
+        scored = oracle.Scored(
+            "bearing", positive, np.repeat([f"f{i}" for i in range(8)], 5), severity, negative,
+            np.repeat([f"n{i}" for i in range(10)], 5),
+        )  # fmt: skip
+        rows = {r.probe: r for r in oracle.oracle_rows([scored]) if r.target == "sub:bearing"}
+        gradient = rows[oracle.GRADIENT_PROBE]
+        assert gradient.figure == pytest.approx(high - low)  # both bins at AUC 1: the margin orders them
+        assert gradient.status == ("PASS" if passes else "FAIL")

@@ -26,11 +26,96 @@ def test_the_gate_reads_the_power_at_each_pass_of_the_defect_over_the_rest() -> 
     power[0, passes] = 101.0  # a strike at each pass, nothing elsewhere
     span = round(fault_indicators.STRIKE_GATE_S * rate)
     inside = 2 * span + 1  # samples of each gate (passes far enough apart for the gates not to overlap)
-    expected = (inside - 1 + 101.0) / inside  # the gate's mean over the rest's (1)
+    expected = (inside - 1 + 101.0) / inside  # each gate's mean over the rest's (1)
     assert fault_indicators.gated_ratio(power, angle, np.pi / 2, 3.0, rate)[0] == pytest.approx(expected)
     assert fault_indicators.gated_ratio(power, angle, np.pi / 2 + np.pi / 3, 3.0, rate)[0] < 1.0  # between
     still = np.full((1, n), 0.5)  # no pass: no evidence
     assert fault_indicators.gated_ratio(power, still, 1.0, 1.0, rate)[0] == 1.0
+    # the same energy in one pass: that gate stands out 6 x as far, the other five not at all; the geometric
+    # mean over the passes gives it the sixth root
+    once = np.ones((1, n))
+    once[0, passes[2]] = 1.0 + 6 * 100.0
+    single = (inside - 1 + once[0, passes[2]]) / inside
+    got = fault_indicators.gated_ratio(once, angle, np.pi / 2, 3.0, rate)[0]
+    assert got == pytest.approx(single ** (1 / 6))
+    assert got < expected
+
+
+def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_other() -> None:
+    rng = np.random.default_rng(0)
+    k = 3
+    angle = np.outer(np.ones(k), np.linspace(0.0, 4 * np.pi, IMU_LEN, endpoint=False))  # 1 rev/s
+    audio = 0.1 * rng.normal(size=(k, AUDIO_LEN, 2))
+    imu7 = rng.normal(size=(k, 7, IMU_LEN))
+    lo, hi = envelope_band("bearing", AUDIO_RATE)
+    t = np.arange(AUDIO_LEN) / AUDIO_RATE
+    burst = np.sin(2 * np.pi * 0.5 * (lo + hi) * t[: int(0.01 * AUDIO_RATE)])
+    for start in (0.25, 1.25):  # a strike at wheel angle pi / 2 each revolution, at the left microphone only
+        i = int(start * AUDIO_RATE)
+        audio[:, i : i + burst.size, 0] += burst
+    prep = fault_indicators.prepare("bearing", audio, imu7)
+    assert fault_indicators.INDICATORS["bearing"] == ("strike_audio", "strike_side")
+    at_left, at_right = fault_indicators.WheelSite(0, 1.0, 1.0), fault_indicators.WheelSite(1, -1.0, 1.0)
+    left = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_left)[:, 0]
+    right = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_right)[:, 0]
+    assert np.all(left[:, 0] > 2.0) and np.all(np.abs(right[:, 0]) < 0.5)  # heard at the left microphone
+    np.testing.assert_allclose(left[:, 1], left[:, 0] - right[:, 0])  # louder there than at the other
+    np.testing.assert_allclose(right[:, 1], -left[:, 1])
+    layout = np.array([[0.18, 0.225, 0.0], [0.18, -0.225, 0.0], [-0.18, 0.225, 0.0], [-0.18, -0.225, 0.0]])
+    microphones = np.array([[0.05, 0.1, 0.12], [0.05, -0.1, 0.12]])
+    sites = fault_indicators.wheel_sites(layout, microphones)
+    assert [(s.microphone, s.lateral, s.longitudinal) for s in sites] == [
+        (0, 1.0, 1.0), (1, -1.0, 1.0), (0, 1.0, -1.0), (1, -1.0, -1.0)
+    ]  # fmt: skip
+    two = fault_indicators.wheel_sites(layout[:2] * [0.0, 1.0, 1.0], microphones)  # a two-wheel robot
+    assert [(s.microphone, s.lateral, s.longitudinal) for s in two] == [(0, 1.0, 0.0), (1, -1.0, 0.0)]
+
+
+def test_a_corners_strike_is_read_in_the_roll_and_pitch_rates_only() -> None:
+    rng = np.random.default_rng(1)
+    angle = np.linspace(0.0, 4 * np.pi, IMU_LEN, endpoint=False)[None]
+    audio = rng.normal(size=(1, AUDIO_LEN, 2))
+    quiet = rng.normal(size=(1, 7, IMU_LEN))
+    strikes = np.zeros(IMU_LEN)
+    strikes[[50, 250]] = 30.0  # at wheel angle pi / 2 of each revolution
+    tilt = fault_indicators.TILT_CHANNELS
+    assert tilt == (4, 5)
+
+    def strike_tilt(imu7: np.ndarray) -> float:
+        prep = fault_indicators.prepare("flat_spot", audio, imu7)
+        site = fault_indicators.WheelSite(0, 1.0, 1.0)
+        return float(fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, site)[0, 0, 2])
+
+    heave = quiet.copy()
+    heave[0, 3] += strikes  # the vertical acceleration alone: not a corner's tilt
+    rocked = quiet.copy()
+    rocked[0, list(tilt)] += strikes
+    assert strike_tilt(heave) == pytest.approx(strike_tilt(quiet))
+    assert strike_tilt(rocked) > strike_tilt(quiet) + 1.0
+
+
+def test_a_corners_rise_adds_up_in_phase_with_the_signs_of_its_place_either_way_it_rolls() -> None:
+    rng = np.random.default_rng(2)
+    t = np.arange(IMU_LEN) / IMU_RATE
+    phi = 1.0
+    phases = phi + np.linspace(0.0, 2 * np.pi, 8, endpoint=False)  # the runout's angle first
+    site = fault_indicators.WheelSite(1, -1.0, 1.0)  # front right
+    for direction in (1.0, -1.0):
+        angle = direction * 2 * np.pi * 1.2 * t  # 2.4 revolutions, forwards or backwards
+        rise = np.sin(angle - phi)  # the axle's height
+        rate = direction * np.cos(angle - phi)  # its rate of change, signed by the rolling direction
+        motion = np.stack([-rise, site.lateral * rate, -site.longitudinal * rate])[None]  # az, roll, pitch
+        value = fault_indicators.corner_rise(motion, angle[None], phases, site)[0]
+        assert value[0] == pytest.approx(np.sqrt(0.5), abs=0.02)  # each line 1 / sqrt(2), all in phase
+        assert np.argmax(value) == 0 and value[4] == pytest.approx(-value[0])  # half a turn off: opposite
+        wrong = fault_indicators.WheelSite(
+            1, 1.0, -1.0
+        )  # the diagonal corner tilts the chassis the other way
+        assert fault_indicators.corner_rise(motion, angle[None], phases, wrong)[0, 0] < 0.25
+    noise = rng.normal(size=(200, 3, IMU_LEN))
+    angle = np.tile(2 * np.pi * 1.2 * t, (200, 1))
+    quiet = fault_indicators.corner_rise(noise, angle, phases[:1], site)[:, 0]
+    assert abs(quiet.mean()) < 0.01 and quiet.std() < 0.05
 
 
 def test_the_mesh_level_is_the_mesh_line_and_its_wheel_order_sidebands() -> None:
@@ -48,8 +133,9 @@ def test_the_mesh_level_is_the_mesh_line_and_its_wheel_order_sidebands() -> None
 
 
 def _windows(n: int, seed: int, strike: float) -> Windows:
-    """Noise windows with four wheels turning at 1 to 2 rev/s; `strike` > 0 plants a flat spot on wheel 2:
-    a 20 ms burst in the flat spot's band each time that wheel passes its defect angle."""
+    """Noise windows with four wheels turning at 1 to 2 rev/s; `strike` > 0 plants a flat spot on wheel 2
+    (back left): a 20 ms burst in the flat spot's band each time that wheel passes its defect angle, at the
+    left microphone 10 dB louder than at the right."""
     rng = np.random.default_rng(seed)
     speed = rng.uniform(1.0, 2.0, size=(n, 1, 4)) * 2 * np.pi
     odometry = speed * (np.arange(IMU_LEN) / IMU_RATE)[None, :, None]
@@ -63,7 +149,7 @@ def _windows(n: int, seed: int, strike: float) -> Windows:
             wheel = np.interp(t, np.arange(IMU_LEN) / IMU_RATE, odometry[i, :, 2]) + rng.uniform(0, 2 * np.pi)
             for j in np.flatnonzero(np.diff(np.floor(wheel / (2 * np.pi))) != 0):
                 end = min(int(j) + burst.size, AUDIO_LEN)
-                audio[i, j:end, :] += strike * burst[: end - j, None]
+                audio[i, j:end, :] += strike * burst[: end - j, None] * np.array([1.0, 0.3])
     return Windows(
         audio=audio.astype(np.float32),
         imu=imu.astype(np.float32),

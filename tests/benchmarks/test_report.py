@@ -272,7 +272,8 @@ def test_ranking_note_counts_the_differences_that_contain_zero() -> None:
     per_method, run = _run_of({"msvdd": 0.5, "dae": 0.5, "audio-rms": 8.0})
     note = ranking_note(run)
     level = [
-        m for m, mi in run.methods.items()
+        m
+        for m, mi in run.methods.items()
         if m != "msvdd" and mi.vs_reference["auc"].low <= 0.0 <= mi.vs_reference["auc"].high
     ]
     assert level == ["dae"]

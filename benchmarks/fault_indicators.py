@@ -8,7 +8,7 @@ and defect angle in turn):
 - strikes (flat spot, bearing, loose hub): the response within `STRIKE_GATE_S` of each pass of the defect
   (the angle crossing phase + 2 pi j / order) over the rest of the window, every pass asked to stand out
   (`gated_ratio`), in the audio's squared envelope in the kind's band (`sim.faults.envelope_band`) at the
-  microphone nearest the wheel, and in the chassis' roll and pitch rates (`TILT_CHANNELS`): the
+  microphone nearest the wheel, and for a flat in the chassis' roll and pitch rates (`TILT_CHANNELS`): the
   time-synchronous average of the defect's strike against everything else;
 - where a strike comes from: how much more it stands out at the wheel's own microphone than at the other
   (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a sound from
@@ -22,12 +22,13 @@ and defect angle in turn):
   audio (`mesh_level`), the tone's amplitude tracked by the wheel's angle (condition monitoring's gear-mesh
   amplitude).
 
-Each IMU indicator is the mean of its logarithm over its channels: the chassis' response, however it spreads
-over the axes, as one indicator (separate ones would each add a chance of a nominal extreme, and bury the
-audio's evidence). A defect at one wheel lifts and drops one corner of the chassis; the IMU near the centre
-feels that mostly as roll and pitch, where a bump under the whole robot or its own acceleration shows in every
-axis; so a flat's strikes are read in the roll and pitch rates only, and an out-of-round wheel's rise in the
-motion the rise of its own corner makes (`WheelSite`).
+Each IMU indicator is one figure over its channels (the mean of their logarithms; for `corner_rise` their
+coherent sum): the chassis' response, however it spreads over the axes, as one indicator (separate ones would
+each add a chance of a nominal extreme, and bury the audio's evidence). A defect at one wheel lifts and
+drops one corner of the chassis; the IMU near the centre feels that mostly as roll and pitch, where a bump
+under the whole robot or its own acceleration shows in every axis; so a flat's strikes are read in the roll
+and pitch rates only, and an out-of-round wheel's rise in the motion the rise of its own corner makes
+(`WheelSite`).
 
 Which indicators each kind reads, and on which channels, was chosen on dev datasets (seeds never audited):
 an indicator whose evidence is at chance for a kind only adds nominal extremes to its score. On dev, the
@@ -80,22 +81,27 @@ def gated_ratio(power: np.ndarray, angle: np.ndarray, phase: float, order: float
     outside every pass' gate; 1 for a window without a pass (each pass' ratio floored at 1e-3).
 
     A defect strikes at every pass and a nominal transient (a floor joint, a footstep) at one: the geometric
-    mean asks every pass to stand out, where the mean over all gates is carried by one loud pass."""
+    mean asks every pass to stand out, where the mean over all gates is carried by one loud pass. Where the
+    passes come so fast that the gates would cover most of the window (a bearing's balls above about 2 rev/s),
+    each gate reaches at most a quarter of the window's mean pass interval either side, so that at least
+    about half of the window is left to compare with."""
     cycles = np.floor(order * (angle - phase) / (2 * np.pi))
     hit = np.zeros(angle.shape, dtype=bool)
     hit[:, 1:] = cycles[:, 1:] != cycles[:, :-1]
     k, n = angle.shape
-    span = max(1, round(STRIKE_GATE_S * rate))
-    counts = np.concatenate([np.zeros((k, span + 1), np.int64), np.cumsum(hit, axis=1)], axis=1)
-    counts = np.concatenate([counts, np.repeat(counts[:, -1:], span, axis=1)], axis=1)
-    outside_gates = (counts[:, 2 * span + 1 : 2 * span + 1 + n] - counts[:, :n]) == 0
+    passes = hit.sum(axis=1)
+    span = np.clip(n // (4 * np.maximum(passes, 1)), 1, max(1, round(STRIKE_GATE_S * rate)))  # (k,)
+    seen = np.concatenate([np.zeros((k, 1), np.int64), np.cumsum(hit, axis=1)], axis=1)  # passes before j
+    i = np.arange(n)[None, :]
+    hi = np.minimum(i + span[:, None] + 1, n)
+    lo = np.maximum(i - span[:, None], 0)
+    outside_gates = np.take_along_axis(seen, hi, axis=1) == np.take_along_axis(seen, lo, axis=1)
     outside = (power * outside_gates).sum(axis=1) / np.maximum(outside_gates.sum(axis=1), 1)
     total = np.concatenate([np.zeros((k, 1)), np.cumsum(power, axis=1)], axis=1)
     rows, at = np.nonzero(hit)
-    lo, hi = np.maximum(at - span, 0), np.minimum(at + span + 1, n)
-    inside = (total[rows, hi] - total[rows, lo]) / (hi - lo)
+    first, last = np.maximum(at - span[rows], 0), np.minimum(at + span[rows] + 1, n)
+    inside = (total[rows, last] - total[rows, first]) / (last - first)
     log_ratio = np.log(np.maximum(inside / np.maximum(outside[rows], 1e-30), 1e-3))
-    passes = np.bincount(rows, minlength=k)
     mean_log = np.bincount(rows, log_ratio, minlength=k) / np.maximum(passes, 1)
     return np.asarray(np.where(passes > 0, np.exp(mean_log), 1.0))
 
@@ -146,11 +152,11 @@ def corner_rise(smooth: np.ndarray, angle: np.ndarray, phases: np.ndarray, site:
     weights = np.stack(
         [np.full(len(angle), -1j), site.lateral * rolling, -site.longitudinal * rolling], axis=1
     )
-    used = np.abs(weights[0]) > 0
+    used = np.array([True, site.lateral != 0, site.longitudinal != 0])
     centred = smooth - smooth.mean(axis=-1, keepdims=True)
     scale = np.maximum(centred.std(axis=-1), 1e-30)  # (k, 3)
     demod = np.einsum("kcm,km->kc", centred, np.exp(-1j * angle)) / smooth.shape[-1] / scale
-    line = (demod[:, used] * weights[:, used]).sum(axis=1) / used.sum()  # (k,) rise x exp(-i phi) / 2
+    line = (demod[:, used] * weights[:, used]).sum(axis=1) / used.sum()  # (k,) in phase: exp(-i phi) x line
     return np.asarray(np.real(line[:, None] * np.exp(1j * np.asarray(phases))[None, :]))
 
 

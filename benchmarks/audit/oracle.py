@@ -16,7 +16,8 @@ at the orders of the episode's own robot unit (units differ in gear ratio, so in
 Each indicator is compared with its distribution over nominal training windows (looked at the same way); a
 window's score is the summed rarity of its kind's indicators (`fault_indicators.Rarity`). Reported per fault
 kind and severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
-bootstrap interval; at severity >= 0.75 each kind must reach `ORACLE_FLOOR`.
+bootstrap interval; at severity >= 0.75 each kind must reach `ORACLE_FLOOR`, and its fault windows must
+stand out further than at severity < 0.5 (`GRADIENT_PROBE`).
 
 The control keeps it honest: every fault episode simulated and rendered again with its fault at severity
 0 (same seed, same driving, same defect angle), scored on the same windows through the same view, must be

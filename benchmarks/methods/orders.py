@@ -8,7 +8,8 @@ know which wheel is faulty, at which angle its defect meets the floor, nor which
 tests every hypothesis in turn and reports the most significant:
 
 - a hypothesis is a fault kind on a wheel with its defect at one of `PHASES` evenly spaced angles (a strike's
-  indicators depend on the defect's angle; the others on the wheel only, the vibration on neither); a wheel's
+  indicators and a corner's rise depend on the defect's angle; the others on the wheel only, the vibration
+  on neither); a wheel's
   strikes are read at the microphone nearest it and its corner's rise with the signs its place gives it, on
   the robot model's nominal layout (`robot_wheel_sites`), which a robot team knows;
 - the orders are the drive train's (`sim.faults.bpfo_order` with the middle of the balls' slip range; the
@@ -58,9 +59,15 @@ _CHUNK = 64
 
 def hypothesis_features(batch: Windows, model: str = "skid4") -> dict[str, np.ndarray]:
     """For each fault kind, the (N, H, F) indicators of a window batch under its H hypotheses (wheel x defect
-    angle, see the module; wheel only for the kinds without a strike), F its `INDICATORS`."""
+    angle, see the module; wheel only for the kinds whose indicators do not depend on the defect's angle),
+    F its `INDICATORS`."""
     if batch.odometry is None or batch.imu6 is None:
         raise WindowError("odometry or imu6 is None: the order reference reads wheel encoders and IMU axes")
+    wheels = len(robot_wheel_sites(model))
+    if batch.odometry.shape[2] != wheels:
+        raise WindowError(
+            f"odometry has {batch.odometry.shape[2]} wheels; the robot model {model!r} has {wheels}"
+        )
     chunks = [
         _chunk_features(batch.subset(slice(i, i + _CHUNK)), model) for i in range(0, len(batch), _CHUNK)
     ]
@@ -196,7 +203,8 @@ def register_methods() -> None:
         family="reference",
         modality="audio+imu+odometry",
         description="reference: each fault kind's condition-monitoring indicators on the wheel encoders' "
-        "angle (strikes at the defect's passes, order-1 line, vibration, gear-mesh level), every wheel and "
+        "angle (strikes at the defect's passes at the wheel's microphone and in the chassis' tilt, a "
+        "corner's once-per-revolution rise, order-1 line, vibration, gear-mesh level), every wheel and "
         "defect angle tested, each kind's best hypothesis calibrated on nominal windows that rolled as far, "
         "the most significant kind",
         label="Order tracking, wheel encoders",

@@ -13,7 +13,9 @@ from benchmarks.methods._io import save_npz
 from benchmarks.methods.orders import OrderReference, revolution_bin
 from benchmarks.metrics import roc_auc
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, ModelFormatError, WindowError, Windows
+from sim import Fault, Scenario, simulate
 from sim.faults import envelope_band
+from sim.scenario import Route, Unit, Waypoint
 
 
 def test_the_gate_reads_the_power_at_each_pass_of_the_defect_over_the_rest() -> None:
@@ -39,6 +41,13 @@ def test_the_gate_reads_the_power_at_each_pass_of_the_defect_over_the_rest() -> 
     got = fault_indicators.gated_ratio(once, angle, np.pi / 2, 3.0, rate)[0]
     assert got == pytest.approx(single ** (1 / 6))
     assert got < expected
+    # 50 passes in 400 samples: gates of +-10 samples would cover the whole window and leave nothing to
+    # compare with; each reaches a quarter of the pass interval (2 samples) and even power stays at 1
+    assert fault_indicators.gated_ratio(np.ones((1, n)), angle, 0.1, 25.0, rate)[0] == pytest.approx(1.0)
+    fast = np.ones((1, n))
+    fast_passes = np.flatnonzero(np.diff(np.floor(25.0 * (angle[0] - 0.1) / (2 * np.pi))) != 0) + 1
+    fast[0, fast_passes] = 6.0  # a strike at each pass: each 5-sample gate holds it once
+    assert fault_indicators.gated_ratio(fast, angle, 0.1, 25.0, rate)[0] == pytest.approx(2.0, rel=0.05)
 
 
 def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_other() -> None:
@@ -192,3 +201,31 @@ def test_an_order_reference_file_without_a_kinds_distribution_is_refused(tmp_pat
              {k: v for k, v in arrays.items() if k != "evidence/bearing/0"})  # fmt: skip
     with pytest.raises(ModelFormatError, match=r"m\.npz"):
         OrderReference.load(tmp_path / "m.npz")
+
+
+@pytest.mark.parametrize("wheel", [1, 2])  # front right, back left: both signs of both lever arms
+def test_a_simulated_out_of_round_wheel_rises_in_phase_with_its_defect(wheel: int) -> None:
+    scenario = Scenario(
+        name="straight", seed=3, duration=6.0, environment="indoor", surface="tile", arena=(12.0, 4.0),
+        robot=Unit(model="skid4", unit_id=0, variation=0.0),
+        route=Route(start=(-10.0, 0.0, 0.0), waypoints=(Waypoint(11.0, 0.0, 1.0),), accel=1.0, loop=False),
+        faults=(Fault("out_of_round", wheel, 1.0, 1.0),),
+    )  # fmt: skip
+    trace = simulate(scenario)
+    angle = np.interp(trace.imu_time, trace.time, trace.wheel_angle[:, wheel])
+    imu7 = np.concatenate([trace.imu_vel_z[:, None], trace.imu_acc, trace.imu_gyro], axis=1).T
+    starts = [
+        int(2.0 * IMU_RATE),
+        int(4.0 * IMU_RATE),
+    ]  # two windows after the onset, about 4 revolutions each
+    windows = np.stack([imu7[:, s : s + IMU_LEN] for s in starts])
+    rise = condition.band_pass(
+        windows[:, fault_indicators.RISE_CHANNELS], IMU_RATE, (0.3, condition.SPLIT_HZ)
+    )
+    phases = trace.faults[0].phase + np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
+    site = fault_indicators.wheel_sites(trace.robot.wheel_pos_body, trace.robot.mic_pos_body)[wheel]
+    value = fault_indicators.corner_rise(
+        rise, np.stack([angle[s : s + IMU_LEN] for s in starts]), phases, site
+    )
+    assert np.all(np.argmax(value, axis=1) == 0)  # in phase with the defect the physics placed
+    assert np.all(value[:, 0] > 0.3)  # and far above what noise gives (about 0.05)

@@ -86,5 +86,3 @@ def test_batch_mahalanobis_depends_only_on_the_spectrum_against_eps() -> None:
         expected = float((lam / (lam + eps)).sum())
         assert float(d2[support].mean()) == pytest.approx(expected, rel=1e-9)
     assert expected < 0.5  # scale 1e-4: variances 1e-8 << eps, the loss term is nearly 0
-
-

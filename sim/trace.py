@@ -165,8 +165,10 @@ class FaultRecord:
     """The defect's size (`sim.faults.defect_size`): flat depth, runout, spall length or play in m; for worn
     gears the transmission error's growth in units of a healthy pair's."""
     phase: float = 0.0
-    """Wheel angle at which the defect meets the floor (flat, runout's high point, loose hub's wobble) or a
-    ball meets the spall, rad."""
+    """Wheel angle at which the defect meets the floor (flat, loose hub's wobble) or a ball meets the spall,
+    rad; for an out-of-round wheel the direction of its runout in the wheel's frame (`sim.engine` offsets the
+    tread towards (cos phase, 0, sin phase)), whose high point meets the floor a quarter turn later, at wheel
+    angle phase + pi / 2."""
 
 
 @dataclass(frozen=True)

@@ -70,12 +70,6 @@ ENVELOPE_BLOCK = 21
 """Audio samples averaged into one envelope sample (4410 Hz / 21 = 210 Hz)."""
 
 
-def log_lines(x: np.ndarray, angle: np.ndarray, orders: np.ndarray) -> np.ndarray:
-    """(N, K) log of `order_lines`, floored at what noise gives (1 / sqrt(n)), which a still wheel gives."""
-    lines = order_lines(x, angle, orders)
-    return np.asarray(np.log(np.maximum(lines, 1.0 / np.sqrt(np.shape(x)[-1]))))
-
-
 def block_envelope(
     audio: np.ndarray, rate: float, band: tuple[float, float]
 ) -> tuple[np.ndarray, np.ndarray]:

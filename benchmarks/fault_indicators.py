@@ -10,13 +10,12 @@ and defect angle in turn):
   (`gated_ratio`), in the audio's squared envelope in the kind's band (`sim.faults.envelope_band`) at the
   microphone nearest the wheel, and for a flat in the chassis' roll and pitch rates (`TILT_CHANNELS`): the
   time-synchronous average of the defect's strike against everything else;
-- where a strike comes from: how much more it stands out at the wheel's own microphone than at the other
-  (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a sound from
-  the other side or from the room does not);
+- where a bearing's strikes come from: how much more they stand out at the wheel's own microphone than at
+  the other (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a
+  sound from the other side or from the room does not);
 - an out-of-round wheel's corner rising and falling once per revolution: the order-1 lines of the vertical
   acceleration, roll and pitch rates (below `condition.SPLIT_HZ`), added with the signs and phases a rise of
   that wheel's corner gives them and read in phase with the defect (`corner_rise`);
-- a loose hub's once-per-revolution wobble: the order-1 line of the IMU's smooth motion;
 - a loose hub's rattle: the IMU's vibration power above `condition.SPLIT_HZ`;
 - worn gears: the level of the gear-mesh line with its wheel-order sidebands (mesh -+ 1 order) in the raw
   audio (`mesh_level`), the tone's amplitude tracked by the wheel's angle (condition monitoring's gear-mesh
@@ -37,7 +36,8 @@ a flat's once-per-revolution motion (the rigid four-wheel chassis rests on three
 its flat), and an out-of-round wheel did not modulate the rolling sound. A worn pair's mesh line over the
 lines around it saturated at low severity (the whine's own wheel- and shaft-rate modulation lifts its
 neighbours), where the mesh group's level grows with the wear; its motor-shaft sidebands and the IMU's
-shaft-order line were weaker.
+shaft-order line were weaker. A loose hub's once-per-revolution wobble (the order-1 line of the IMU's motion)
+and the side of a flat's or a loose hub's strikes only added nominal extremes to their kinds' evidence.
 
 `Rarity` turns indicators into evidence: each one's upper tail under its distribution over nominal windows.
 """
@@ -62,9 +62,9 @@ gyroscope xyz): how the chassis feels one corner rise or strike."""
 RISE_CHANNELS = (3, 4, 5)
 """The vertical acceleration, roll and pitch rates among the seven IMU channels (`corner_rise`)."""
 INDICATORS: dict[str, tuple[str, ...]] = {
-    "flat_spot": ("strike_audio", "strike_side", "strike_tilt"),
+    "flat_spot": ("strike_audio", "strike_tilt"),
     "bearing": ("strike_audio", "strike_side"),
-    "loose_wheel": ("strike_audio", "strike_side", "once_per_rev_imu", "vibration_imu"),
+    "loose_wheel": ("strike_audio", "vibration_imu"),
     "out_of_round": ("corner_rise",),
     "motor_degradation": ("mesh_level_audio",),
 }
@@ -189,10 +189,8 @@ class Prepared:
     """(e,) the envelope's sample times (block centres), s."""
     tilt: np.ndarray | None
     """(k, 2, m) the motion power (above 0.5 Hz) of the `TILT_CHANNELS` (strikes)."""
-    smooth: np.ndarray | None
-    """(k, 7, m) the smooth motion below `condition.SPLIT_HZ` (once-per-revolution motion)."""
     rise: np.ndarray | None
-    """(k, 3, m) the smooth motion of the `RISE_CHANNELS` (`corner_rise`)."""
+    """(k, 3, m) the smooth motion (below `condition.SPLIT_HZ`) of the `RISE_CHANNELS` (`corner_rise`)."""
     vibration: np.ndarray | None
     """(k,) mean over the channels of the log of the IMU's vibration power above `condition.SPLIT_HZ`."""
 
@@ -200,7 +198,7 @@ class Prepared:
 def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
     """Filter (k, n, 2) two-microphone audio and the (k, 7, m) IMU channels for `kind`'s indicators."""
     wanted = INDICATORS[kind]
-    envelope = envelope_time = tilt = smooth = rise = vibration = None
+    envelope = envelope_time = tilt = rise = vibration = None
     if "strike_audio" in wanted or "strike_side" in wanted:
         stacked = np.moveaxis(audio, -1, 1).reshape(-1, audio.shape[1])  # (2k, n): each microphone
         band = envelope_band(kind, AUDIO_RATE)
@@ -208,8 +206,6 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
         envelope = envelope.reshape(len(audio), 2, -1)
     if "strike_tilt" in wanted:
         tilt = condition.band_pass(imu7[:, TILT_CHANNELS], IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
-    if "once_per_rev_imu" in wanted:
-        smooth = condition.band_pass(imu7, IMU_RATE, (0.3, condition.SPLIT_HZ))
     if "corner_rise" in wanted:
         rise = condition.band_pass(imu7[:, RISE_CHANNELS], IMU_RATE, (0.3, condition.SPLIT_HZ))
     if "vibration_imu" in wanted:
@@ -217,7 +213,7 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
         vibration = np.mean(
             [np.log(power[:, c].mean(axis=-1) + 1e-20) for c in range(power.shape[1])], axis=0
         )
-    return Prepared(kind, audio.sum(axis=-1), envelope, envelope_time, tilt, smooth, rise, vibration)
+    return Prepared(kind, audio.sum(axis=-1), envelope, envelope_time, tilt, rise, vibration)
 
 
 def indicators(
@@ -267,13 +263,6 @@ def indicators(
         elif name == "corner_rise":
             assert prep.rise is not None
             column = corner_rise(prep.rise, angle, phases, site)
-        elif name == "once_per_rev_imu":
-            assert prep.smooth is not None
-            one = np.array([1.0])
-            lines = [
-                condition.log_lines(channel, angle, one)[:, 0] for channel in prep.smooth.transpose(1, 0, 2)
-            ]
-            column = np.repeat(np.mean(lines, axis=0)[:, None], count, axis=1)
         elif name == "vibration_imu":
             assert prep.vibration is not None
             column = np.repeat(prep.vibration[:, None], count, axis=1)

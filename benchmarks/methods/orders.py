@@ -204,7 +204,7 @@ def register_methods() -> None:
         modality="audio+imu+odometry",
         description="reference: each fault kind's condition-monitoring indicators on the wheel encoders' "
         "angle (strikes at the defect's passes at the wheel's microphone and in the chassis' tilt, a "
-        "corner's once-per-revolution rise, order-1 line, vibration, gear-mesh level), every wheel and "
+        "corner's once-per-revolution rise, vibration, gear-mesh level), every wheel and "
         "defect angle tested, each kind's best hypothesis calibrated on nominal windows that rolled as far, "
         "the most significant kind",
         label="Order tracking, wheel encoders",

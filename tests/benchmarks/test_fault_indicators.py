@@ -90,10 +90,12 @@ def test_a_corners_strike_is_read_in_the_roll_and_pitch_rates_only() -> None:
     tilt = fault_indicators.TILT_CHANNELS
     assert tilt == (4, 5)
 
+    column = fault_indicators.INDICATORS["flat_spot"].index("strike_tilt")
+
     def strike_tilt(imu7: np.ndarray) -> float:
         prep = fault_indicators.prepare("flat_spot", audio, imu7)
         site = fault_indicators.WheelSite(0, 1.0, 1.0)
-        return float(fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, site)[0, 0, 2])
+        return float(fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, site)[0, 0, column])
 
     heave = quiet.copy()
     heave[0, 3] += strikes  # the vertical acceleration alone: not a corner's tilt

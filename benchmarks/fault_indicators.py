@@ -226,16 +226,18 @@ def indicators(
     phases = np.atleast_1d(np.asarray(phases, dtype=np.float64))
     k, count = angle.shape[0], phases.size
     strikes: dict[int, np.ndarray] = {}
+    env_angle: list[np.ndarray] = []  # the wheel's angle at the envelope's samples, resampled once
 
     def strike_audio(mic: int) -> np.ndarray:
         """(k, P) log strike ratio at microphone `mic`."""
         if mic not in strikes:
             assert prep.envelope is not None and prep.envelope_time is not None
-            env_angle = resampled(angle, prep.envelope_time)
+            if not env_angle:
+                env_angle.append(resampled(angle, prep.envelope_time))
             rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
             envelope = prep.envelope[:, mic]
             strikes[mic] = np.stack(
-                [np.log(gated_ratio(envelope, env_angle, p, order, rate)) for p in phases], axis=1
+                [np.log(gated_ratio(envelope, env_angle[0], p, order, rate)) for p in phases], axis=1
             )
         return strikes[mic]
 

@@ -9,9 +9,8 @@ tests every hypothesis in turn and reports the most significant:
 
 - a hypothesis is a fault kind on a wheel with its defect at one of `PHASES` evenly spaced angles (a strike's
   indicators and a corner's rise depend on the defect's angle; the others on the wheel only, the vibration
-  on neither); a wheel's
-  strikes are read at the microphone nearest it and its corner's rise with the signs its place gives it, on
-  the robot model's nominal layout (`robot_wheel_sites`), which a robot team knows;
+  on neither); a wheel's strikes are read at the microphone nearest it and its corner's rise with the signs
+  its place gives it, on the robot model's nominal layout (`robot_wheel_sites`), which a robot team knows;
 - the orders are the drive train's (`sim.faults.bpfo_order` with the middle of the balls' slip range; the
   gear-mesh order pinion teeth x gear ratio), a robot team knows its own robot model. The encoders count the
   motor shaft and the firmware converts with the nominal gear ratio (`sim.odometry`), so in the encoder's

@@ -115,7 +115,7 @@ class OrderReference(WindowDetector):
     calibrated per revolution bin."""
 
     kind = "order-reference"
-    format_version = 3
+    format_version = 4
 
     def __init__(self, model: str = "skid4") -> None:
         super().__init__()

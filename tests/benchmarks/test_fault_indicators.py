@@ -18,36 +18,44 @@ from sim.faults import envelope_band
 from sim.scenario import Route, Unit, Waypoint
 
 
-def test_the_gate_reads_the_power_at_each_pass_of_the_defect_over_the_rest() -> None:
+def test_the_strike_statistic_sums_each_pass_log_ratio_over_the_root_of_the_passes() -> None:
     n, rate = 400, 200.0
     angle = np.linspace(0.0, 4 * np.pi, n, endpoint=False)[None]  # two revolutions, pi / 100 a sample
     power = np.ones((1, n))
-    assert fault_indicators.gated_ratio(power, angle, 1.0, 3.0, rate)[0] == pytest.approx(1.0)
+    statistic = fault_indicators.strike_statistic
+    assert statistic(power, angle, 1.0, 3.0, rate)[0] == pytest.approx(0.0)
     # order 3 at phase pi / 2: passes at pi / 2 + 2 pi j / 3, i.e. every 200 / 3 samples from sample 50
     passes = np.array([50, 117, 183, 250, 317, 383])
     power[0, passes] = 101.0  # a strike at each pass, nothing elsewhere
     span = round(fault_indicators.STRIKE_GATE_S * rate)
     inside = 2 * span + 1  # samples of each gate (passes far enough apart for the gates not to overlap)
-    expected = (inside - 1 + 101.0) / inside  # each gate's mean over the rest's (1)
-    assert fault_indicators.gated_ratio(power, angle, np.pi / 2, 3.0, rate)[0] == pytest.approx(expected)
-    assert fault_indicators.gated_ratio(power, angle, np.pi / 2 + np.pi / 3, 3.0, rate)[0] < 1.0  # between
+    ratio = (inside - 1 + 101.0) / inside  # each gate's mean over the rest's (1)
+    expected = 6 * np.log(ratio) / np.sqrt(6)
+    assert statistic(power, angle, np.pi / 2, 3.0, rate)[0] == pytest.approx(expected)
+    assert statistic(power, angle, np.pi / 2 + np.pi / 3, 3.0, rate)[0] < 0.0  # between the strikes
+    # the same strikes over one revolution (three passes): the evidence grows as the root of the passes
+    first = angle[:, : n // 2]
+    assert statistic(power[:, : n // 2], first, np.pi / 2, 3.0, rate)[0] == pytest.approx(
+        expected / np.sqrt(2)
+    )
     still = np.full((1, n), 0.5)  # no pass: no evidence
-    assert fault_indicators.gated_ratio(power, still, 1.0, 1.0, rate)[0] == 1.0
-    # the same energy in one pass: that gate stands out 6 x as far, the other five not at all; the geometric
-    # mean over the passes gives it the sixth root
+    assert statistic(power, still, 1.0, 1.0, rate)[0] == 0.0
+    # the same energy in one pass: that gate stands out 6 x as far, the other five not at all; it adds its
+    # log ratio once
     once = np.ones((1, n))
     once[0, passes[2]] = 1.0 + 6 * 100.0
     single = (inside - 1 + once[0, passes[2]]) / inside
-    got = fault_indicators.gated_ratio(once, angle, np.pi / 2, 3.0, rate)[0]
-    assert got == pytest.approx(single ** (1 / 6))
+    got = statistic(once, angle, np.pi / 2, 3.0, rate)[0]
+    assert got == pytest.approx(np.log(single) / np.sqrt(6))
     assert got < expected
     # 50 passes in 400 samples: gates of +-10 samples would cover the whole window and leave nothing to
-    # compare with; each reaches a quarter of the pass interval (2 samples) and even power stays at 1
-    assert fault_indicators.gated_ratio(np.ones((1, n)), angle, 0.1, 25.0, rate)[0] == pytest.approx(1.0)
+    # compare with; each reaches a quarter of the pass interval (2 samples) and even power stays at 0
+    assert statistic(np.ones((1, n)), angle, 0.1, 25.0, rate)[0] == pytest.approx(0.0)
     fast = np.ones((1, n))
     fast_passes = np.flatnonzero(np.diff(np.floor(25.0 * (angle[0] - 0.1) / (2 * np.pi))) != 0) + 1
-    fast[0, fast_passes] = 6.0  # a strike at each pass: each 5-sample gate holds it once
-    assert fault_indicators.gated_ratio(fast, angle, 0.1, 25.0, rate)[0] == pytest.approx(2.0, rel=0.05)
+    fast[0, fast_passes] = 6.0  # a strike at each pass: each 5-sample gate holds it once, a ratio of 2
+    got = statistic(fast, angle, 0.1, 25.0, rate)[0]
+    assert got == pytest.approx(np.sqrt(len(fast_passes)) * np.log(2.0), rel=0.05)
 
 
 def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_other() -> None:

@@ -5,11 +5,12 @@ audit's privileged oracle (`benchmarks.audit.oracle`: the true wheel angle, the 
 and the fault-aware reference detector (`benchmarks.methods.orders`: the wheel encoders' angle, every wheel
 and defect angle in turn):
 
-- strikes (flat spot, bearing, loose hub): the response within `STRIKE_GATE_S` of each pass of the defect
-  (the angle crossing phase + 2 pi j / order) over the rest of the window, summed over the passes as a t
-  statistic (`strike_statistic`), in the audio's squared envelope in the kind's band
-  (`sim.faults.envelope_band`) at the microphone nearest the wheel, and for a flat in the chassis' roll and
-  pitch rates (`TILT_CHANNELS`): the time-synchronous average of the defect's strike against everything else;
+- strikes (flat spot, bearing, loose hub): the response within `STRIKE_GATE_S` of each pass of the defect (the
+  angle crossing phase + 2 pi j / order) over the rest of the window, pooled over the passes
+  (`strike_statistic`, `PASS_POOLINGS`: the oracle their mean, the reference a t statistic), in the audio's
+  squared envelope in the kind's band (`sim.faults.envelope_band`) at the microphone nearest the wheel, and
+  for a flat in the chassis' roll and pitch rates (`TILT_CHANNELS`): the time-synchronous average of the
+  defect's strike against everything else;
 - where a bearing's strikes come from: how much more they stand out at the wheel's own microphone than at
   the other (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a
   sound from the other side or from the room does not);
@@ -70,25 +71,28 @@ INDICATORS: dict[str, tuple[str, ...]] = {
 }
 """The indicators read for each fault kind, in their feature columns' order (see the module)."""
 _NAMES = frozenset(name for names in INDICATORS.values() for name in names)
+PASS_POOLINGS = ("mean", "t")
+"""How a strike indicator pools its passes' log ratios (`strike_statistic`). "mean": their mean, how far
+each strike stands out whatever the number of passes (the audit's oracle, whose severity gradient compares
+defects at different speeds). "t": their sum over the root of their count (a t statistic, the evidence that
+accumulates over the passes): a defect shifts every pass' reading, so the sum grows as the passes and its
+noise as their root, and a window with one pass is as noisy as one with ten under nominal power, where
+with the mean the windows with few passes carry every nominal extreme of a score that ranks windows of
+every speed against one nominal distribution (the fault-aware reference; chosen on dev over the mean:
+exponents 0.5 to 1 of the count scored alike, above 0)."""
 PHASED: frozenset[str] = frozenset({"strike_audio", "strike_side", "strike_tilt", "corner_rise"})
 """The indicators that depend on the defect's angle (the others read the wheel's angle only, or none)."""
 
 
 def strike_statistic(
-    power: np.ndarray, angle: np.ndarray, phase: float, order: float, rate: float
+    power: np.ndarray, angle: np.ndarray, phase: float, order: float, rate: float, pooling: str
 ) -> np.ndarray:
     """(k,) how far (k, n) `power` sampled at `rate` stands out at the passes of a defect at wheel angle
     `phase` (rad) with `order` events per revolution (the angle (k, n) passing phase + 2 pi j / order): the
-    sum over the passes of the log of each pass' mean power within `STRIKE_GATE_S` of the pass over the mean
-    outside every pass' gate, divided by the square root of the number of passes; 0 for a window without a
-    pass (each pass' ratio floored at 1e-3).
-
-    Each pass' log ratio is one noisy reading: a defect shifts every one of them, so their sum grows as the
-    passes and its noise as their square root (a t statistic: the mean log ratio times the root of the
-    count). A window with one pass is then as noisy as one with ten under nominal power, where the mean
-    alone lets the windows with few passes carry every nominal extreme (chosen on dev over the mean:
-    exponents 0.5 to 1 of the count scored alike, above 0). A nominal transient (a floor joint, a footstep)
-    falls in one pass and adds its log ratio once. Where the passes come so fast that the gates would cover
+    log of each pass' mean power within `STRIKE_GATE_S` of the pass over the mean outside every pass' gate,
+    pooled over the passes as `pooling` says (`PASS_POOLINGS`); 0 for a window without a pass (each pass'
+    ratio floored at 1e-3). A nominal transient (a floor joint, a footstep) falls in one pass and adds its
+    log ratio once. Where the passes come so fast that the gates would cover
     most of the window (a bearing's balls above about 2 rev/s), each gate reaches at most a quarter of the
     window's mean pass interval either side, so that at least about half of the window is left to compare
     with."""
@@ -109,7 +113,8 @@ def strike_statistic(
     first, last = np.maximum(at - span[rows], 0), np.minimum(at + span[rows] + 1, n)
     inside = (total[rows, last] - total[rows, first]) / (last - first)
     log_ratio = np.log(np.maximum(inside / np.maximum(outside[rows], 1e-30), 1e-3))
-    return np.bincount(rows, log_ratio, minlength=k) / np.sqrt(np.maximum(passes, 1))
+    count = np.maximum(passes, 1).astype(np.float64)
+    return np.bincount(rows, log_ratio, minlength=k) / (count if pooling == "mean" else np.sqrt(count))
 
 
 @dataclass(frozen=True)
@@ -223,12 +228,21 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
 
 
 def indicators(
-    prep: Prepared, angle: np.ndarray, phases: np.ndarray, order: float, site: WheelSite
+    prep: Prepared,
+    angle: np.ndarray,
+    phases: np.ndarray,
+    order: float,
+    site: WheelSite,
+    *,
+    pooling: str,
 ) -> np.ndarray:
     """(k, P, F) the `INDICATORS` of `prep.kind` of the prepared windows (columns in that order), looked at
     through a wheel at angles `angle` (k, `IMU_LEN`) sitting at `site`, with a defect at each of the wheel
     angles `phases` (P,) (rad) and `order` events per revolution (for worn gears, the gear-mesh order; its
-    level does not depend on the defect's angle)."""
+    level does not depend on the defect's angle); strikes pooled over their passes as `pooling` says
+    (`PASS_POOLINGS`)."""
+    if pooling not in PASS_POOLINGS:
+        raise ValueError(f"pooling {pooling!r} is unknown; allowed: {', '.join(PASS_POOLINGS)}")
     phases = np.atleast_1d(np.asarray(phases, dtype=np.float64))
     k, count = angle.shape[0], phases.size
     strikes: dict[int, np.ndarray] = {}
@@ -243,7 +257,7 @@ def indicators(
             rate = AUDIO_RATE / condition.ENVELOPE_BLOCK
             envelope = prep.envelope[:, mic]
             strikes[mic] = np.stack(
-                [strike_statistic(envelope, env_angle[0], p, order, rate) for p in phases], axis=1
+                [strike_statistic(envelope, env_angle[0], p, order, rate, pooling) for p in phases], axis=1
             )
         return strikes[mic]
 
@@ -262,7 +276,11 @@ def indicators(
             column = np.stack(
                 [
                     np.mean(
-                        [strike_statistic(prep.tilt[:, c], angle, p, order, IMU_RATE) for c in channels], 0
+                        [
+                            strike_statistic(prep.tilt[:, c], angle, p, order, IMU_RATE, pooling)
+                            for c in channels
+                        ],
+                        0,
                     )
                     for p in phases
                 ],

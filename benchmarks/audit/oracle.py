@@ -56,6 +56,10 @@ TRAIN_WINDOWS = 1500
 """Most nominal training windows the oracle's baseline is fitted on (evenly over the episodes)."""
 NOMINAL_PHASES = 4
 """Defect angles (evenly spaced) a nominal window is looked at with, for each wheel."""
+PASS_POOLING = "mean"
+"""How the oracle pools a strike's passes (`fault_indicators.PASS_POOLINGS`): their mean log ratio, how far
+each strike stands out, so that the severity gradient (`GRADIENT_PROBE`) compares defects, not how many
+passes their windows held (which the driving speed sets)."""
 
 
 def severity_bin(severity: float) -> str:
@@ -150,7 +154,9 @@ def window_features(sig: Signals, starts: np.ndarray, views: list[View]) -> list
     prep = fault_indicators.prepare(views[0].kind, audio, channels)
     angles = {w: _cut(sig.angle[:, w], starts, IMU_RATE, IMU_LEN) for w in sorted({v.wheel for v in views})}
     return [
-        fault_indicators.indicators(prep, angles[v.wheel], np.array([v.phase]), v.order, v.site)[:, 0]
+        fault_indicators.indicators(
+            prep, angles[v.wheel], np.array([v.phase]), v.order, v.site, pooling=PASS_POOLING
+        )[:, 0]
         for v in views
     ]
 

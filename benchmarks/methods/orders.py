@@ -51,6 +51,9 @@ PHASES = 8
 REVOLUTION_BINS: tuple[float, ...] = (1.0, 2.0, 3.0)
 """Edges of the revolution bins (of the wheel that turned farthest in the window) each kind's evidence is
 calibrated in."""
+PASS_POOLING = "t"
+"""How a strike's passes are pooled (`fault_indicators.PASS_POOLINGS`): a t statistic, evidence that
+accumulates over the passes, so that windows with few passes do not carry the nominal extremes."""
 MIN_BIN_WINDOWS = 20
 """Fewest nominal training windows a revolution bin needs for its own calibration (else all windows')."""
 _CHUNK = 64
@@ -90,7 +93,10 @@ def _chunk_features(batch: Windows, model: str) -> dict[str, np.ndarray]:
             count = PHASES if PHASED.intersection(INDICATORS[kind]) else 1
         phases = 2 * np.pi * np.arange(count) / (count * order)
         out[kind] = np.concatenate(
-            [fault_indicators.indicators(prep, a, phases, order, sites[w]) for w, a in enumerate(angles)],
+            [
+                fault_indicators.indicators(prep, a, phases, order, sites[w], pooling=PASS_POOLING)
+                for w, a in enumerate(angles)
+            ],
             axis=1,
         )
     return out

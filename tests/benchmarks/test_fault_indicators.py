@@ -18,11 +18,16 @@ from sim.faults import envelope_band
 from sim.scenario import Route, Unit, Waypoint
 
 
-def test_the_strike_statistic_sums_each_pass_log_ratio_over_the_root_of_the_passes() -> None:
+def test_the_strike_statistic_pools_each_pass_log_ratio_as_a_mean_or_a_t_statistic() -> None:
     n, rate = 400, 200.0
     angle = np.linspace(0.0, 4 * np.pi, n, endpoint=False)[None]  # two revolutions, pi / 100 a sample
     power = np.ones((1, n))
-    statistic = fault_indicators.strike_statistic
+
+    def statistic(
+        power: np.ndarray, angle: np.ndarray, phase: float, order: float, rate: float
+    ) -> np.ndarray:
+        return fault_indicators.strike_statistic(power, angle, phase, order, rate, pooling="t")
+
     assert statistic(power, angle, 1.0, 3.0, rate)[0] == pytest.approx(0.0)
     # order 3 at phase pi / 2: passes at pi / 2 + 2 pi j / 3, i.e. every 200 / 3 samples from sample 50
     passes = np.array([50, 117, 183, 250, 317, 383])
@@ -38,6 +43,10 @@ def test_the_strike_statistic_sums_each_pass_log_ratio_over_the_root_of_the_pass
     assert statistic(power[:, : n // 2], first, np.pi / 2, 3.0, rate)[0] == pytest.approx(
         expected / np.sqrt(2)
     )
+    # their mean: how far each strike stands out, whatever the number of passes
+    for window, turned in ((power, angle), (power[:, : n // 2], first)):
+        mean = fault_indicators.strike_statistic(window, turned, np.pi / 2, 3.0, rate, pooling="mean")
+        assert mean[0] == pytest.approx(np.log(ratio))
     still = np.full((1, n), 0.5)  # no pass: no evidence
     assert statistic(power, still, 1.0, 1.0, rate)[0] == 0.0
     # the same energy in one pass: that gate stands out 6 x as far, the other five not at all; it adds its
@@ -73,8 +82,9 @@ def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_othe
     prep = fault_indicators.prepare("bearing", audio, imu7)
     assert fault_indicators.INDICATORS["bearing"] == ("strike_audio", "strike_side")
     at_left, at_right = fault_indicators.WheelSite(0, 1.0, 1.0), fault_indicators.WheelSite(1, -1.0, 1.0)
-    left = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_left)[:, 0]
-    right = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_right)[:, 0]
+    left = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_left, pooling="mean")[:, 0]
+    right = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_right, pooling="mean")
+    right = right[:, 0]
     assert np.all(left[:, 0] > 2.0) and np.all(np.abs(right[:, 0]) < 0.5)  # heard at the left microphone
     np.testing.assert_allclose(left[:, 1], left[:, 0] - right[:, 0])  # louder there than at the other
     np.testing.assert_allclose(right[:, 1], -left[:, 1])
@@ -103,7 +113,8 @@ def test_a_corners_strike_is_read_in_the_roll_and_pitch_rates_only() -> None:
     def strike_tilt(imu7: np.ndarray) -> float:
         prep = fault_indicators.prepare("flat_spot", audio, imu7)
         site = fault_indicators.WheelSite(0, 1.0, 1.0)
-        return float(fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, site)[0, 0, column])
+        out = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, site, pooling="t")
+        return float(out[0, 0, column])
 
     heave = quiet.copy()
     heave[0, 3] += strikes  # the vertical acceleration alone: not a corner's tilt

@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 5
+DATASET_FORMAT_VERSION = 6
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -42,8 +42,11 @@ window needs its faulty wheel to have turned (`benchmarks.dataset.MIN_FAULT_REVO
 5: the same layout; the faults' data changed (a flat's slap reverses its corner's fall and rings the wheel's
 bounce on its tread, a spalled bearing grinds loudest where its balls strike), so a seed makes other fault
 episodes than under format 4, which stays readable.
+6: the same layout; the audio's noise beds are woven from one library of shaped segments per spectral shape
+(`synth_audio.dsp.bed_pool`), where each episode shaped its own, so a seed makes other audio than under
+format 5, which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

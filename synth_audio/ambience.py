@@ -100,7 +100,7 @@ def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarr
     """Mono distant speech-like babble through a wall: voiced buzz and noise under syllabic envelopes."""
     nb = -(-n // _BLOCK) + 1
     ctrl = sr / _BLOCK
-    pool = bed_pool(rng, sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
+    pool = bed_pool(sr, (100, 300, 700, 2000, 5000), (-12, 0, -2, -14, -30))
     out = np.zeros(n, dtype=np.float32)
     for _ in range(talkers):
         f0 = rng.uniform(95.0, 220.0) * np.exp(INTONATION * _slow_process(rng, nb, ctrl, 3.0))
@@ -127,7 +127,7 @@ def indoor(
     """
     n, sr = scene.n, scene.sample_rate
     duration = n / sr
-    fan = bed_pool(rng, sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
+    fan = bed_pool(sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
     nb = -(-n // _BLOCK) + 1
     tb = np.arange(nb) * (_BLOCK / sr)
     mains = 50.0 if rng.uniform() < 0.5 else 60.0
@@ -173,11 +173,11 @@ def outdoor(scene: Scene, rng: np.random.Generator, bird_rate: float) -> tuple[n
     ctrl = sr / _BLOCK
     gust = np.exp(0.7 * _slow_process(rng, nb, ctrl, 0.25)) * rng.uniform(0.6, 1.2)
     gust_env = block_ramp(gust[None, :], _BLOCK, n)[0]
-    wind = bed_pool(rng, sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
+    wind = bed_pool(sr, (20, 60, 200, 800, 3000), (0, -3, -12, -26, -44))
     out = _diffuse(rng, n, wind, 0.0) * (gust_env * np.float32(0.8))  # wind noise is incoherent
-    rustle = bed_pool(rng, sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
+    rustle = bed_pool(sr, (500, 2000, 6000, 12000), (-12, 0, -4, -14))
     out += _diffuse(rng, n, rustle, 0.4) * (gust_env * np.float32(0.15))
-    rumble = bed_pool(rng, sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
+    rumble = bed_pool(sr, (30, 100, 300, 1000, 4000), (0, 0, -6, -20, -38))
     swell = 0.6 + 0.4 * np.clip(_slow_process(rng, nb, ctrl, 0.05) + 1.0, 0.0, None)
     for t in _event_times(rng, 0.08, duration):  # vehicles passing by
         swell += rng.uniform(0.5, 1.5) * np.exp(

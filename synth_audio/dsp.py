@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import functools
+import zlib
+
 import numpy as np
 import scipy.fft as sfft
 from scipy.signal import lfilter
@@ -50,12 +53,22 @@ def shaped_noise(
     return normalise_rms(out)
 
 
-def bed_pool(
-    rng: np.random.Generator, sample_rate: int, points_hz: tuple[float, ...], gains_db: tuple[float, ...]
-) -> np.ndarray:
-    """(BED_POOL, BED_SEGMENT) independently shaped unit-RMS segments for `noise_bed`."""
+@functools.lru_cache(maxsize=32)
+def bed_pool(sample_rate: int, points_hz: tuple[float, ...], gains_db: tuple[float, ...]) -> np.ndarray:
+    """(BED_POOL, BED_SEGMENT) independently shaped unit-RMS segments for `noise_bed`, read-only.
+
+    A library, as a sound designer keeps one: the segments depend only on the spectral shape (their
+    generator is seeded by it), so every episode's beds of one shape are woven from the same segments,
+    each bed drawing its own snippets and offsets from the episode's generator (`noise_bed`), and the
+    library is made once per process. Two beds share a stretch of noise only if they draw the same segment
+    and offset (1 in BED_POOL x BED_SEGMENT per snippet), in one episode or across episodes.
+    """
+    key = repr((int(sample_rate), tuple(float(p) for p in points_hz), tuple(float(g) for g in gains_db)))
+    rng = np.random.default_rng([zlib.crc32(key.encode()), 0xBED])
     parts = [shaped_noise(rng, BED_SEGMENT, sample_rate, points_hz, gains_db) for _ in range(BED_POOL)]
-    return np.stack(parts)
+    pool = np.stack(parts)
+    pool.setflags(write=False)
+    return pool
 
 
 def noise_bed(rng: np.random.Generator, n: int, pool: np.ndarray) -> np.ndarray:
@@ -71,15 +84,23 @@ def noise_bed(rng: np.random.Generator, n: int, pool: np.ndarray) -> np.ndarray:
     if n <= 0:
         return np.zeros(0, dtype=np.float32)
     hop = size // 2
-    window = np.sin(np.pi * (np.arange(size) + 0.5) / size).astype(np.float32)
+    window = _sine_window(size)
     out = np.zeros(n + 2 * size, dtype=np.float32)
     for start in range(0, n + hop, hop):  # out[hop:] is the bed: every sample is covered by two snippets
         seg = pool[int(rng.integers(0, k))]
         offset = int(rng.integers(0, size))
-        snippet = np.concatenate([seg[offset:], seg[:offset]])
-        snippet *= window
-        out[start : start + size] += snippet
+        head = size - offset  # the segment read circularly from `offset`, windowed where it lands
+        out[start : start + head] += seg[offset:] * window[:head]
+        out[start + head : start + size] += seg[:offset] * window[head:]
     return out[hop : hop + n]
+
+
+@functools.lru_cache(maxsize=4)
+def _sine_window(size: int) -> np.ndarray:
+    """sin(pi (i + 0.5) / size), float32, read-only: squared, two copies half a window apart sum to one."""
+    window = np.sin(np.pi * (np.arange(size) + 0.5) / size).astype(np.float32)
+    window.setflags(write=False)
+    return window
 
 
 def harmonic_table(

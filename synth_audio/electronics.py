@@ -82,8 +82,9 @@ def unit_fan(robot: RobotInfo) -> Fan:
 def fan_sound(fan: Fan, n: int, sample_rate: int, rng: np.random.Generator) -> np.ndarray:
     """(n,) unit-RMS mono sound of the fan: steady blade-pass harmonics plus broadband noise, float32.
 
-    The tones are read from one wavetable of the shaft phase (all are shaft harmonics); the noise is drawn
-    from `rng` (the render's stream), so only the fan's character is the unit's.
+    The tones are read from one wavetable of the shaft phase (all are shaft harmonics); the noise bed is woven
+    by `rng` (the render's stream) from its shape's library (`dsp.bed_pool`), so only the fan's character
+    is the unit's.
     """
     if n <= 0:
         return np.zeros(0, dtype=np.float32)
@@ -95,7 +96,7 @@ def fan_sound(fan: Fan, n: int, sample_rate: int, rng: np.random.Generator) -> n
     nb = -(-n // _BLOCK)
     cycles = np.arange(nb + 1, dtype=np.float64) * (_BLOCK / sample_rate) * (fan.rpm / 60.0)
     tones = normalise_rms(wavetable(frac_phase(cycles[None, :], _BLOCK, n)[0], table))
-    pool = bed_pool(rng, sample_rate, _NOISE_POINTS_HZ, _NOISE_GAINS_DB)
+    pool = bed_pool(sample_rate, _NOISE_POINTS_HZ, _NOISE_GAINS_DB)
     out = noise_bed(rng, n, pool)
     out += tones
     return normalise_rms(out)

@@ -86,8 +86,8 @@ def _robot_buses(
     buses = {"motor": bus(), "rolling": bus()}
     noise_rng = _rng(seed, "noise")
     spec = SURFACES[surface]
-    road = bed_pool(noise_rng, sr, spec.points_hz, spec.gains_db)
-    brush = bed_pool(noise_rng, sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
+    road = bed_pool(sr, spec.points_hz, spec.gains_db)
+    brush = bed_pool(sr, (1000, 2500, 6000, 12000), (-30, -6, 0, -12))
     roll_rng = _rng(seed, "rolling")
     carrier = pwm_carrier(drive, float(_rng(seed, "motor").uniform(0.0, 2.0 * np.pi)))
     for i in range(w):  # every wheel's brush and road noise is its own, uncorrelated with the others'

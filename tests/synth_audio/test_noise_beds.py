@@ -14,7 +14,7 @@ SR = 44100
 
 def test_bed_is_unit_rms_and_has_no_repetition() -> None:
     rng = np.random.default_rng(0)
-    pool = bed_pool(rng, SR, (100, 1000, 5000), (0, -6, -20))
+    pool = bed_pool(SR, (100, 1000, 5000), (0, -6, -20))
     bed = noise_bed(rng, 20 * SR, pool)
     assert bed.shape == (20 * SR,) and bed.dtype == np.float32
     assert float(np.sqrt(np.mean(bed.astype(np.float64) ** 2))) == pytest.approx(1.0, rel=0.05)
@@ -27,7 +27,7 @@ def test_bed_is_unit_rms_and_has_no_repetition() -> None:
 
 def test_two_beds_from_one_pool_are_uncorrelated() -> None:
     rng = np.random.default_rng(1)
-    pool = bed_pool(rng, SR, (100, 1000, 5000), (0, -6, -20))
+    pool = bed_pool(SR, (100, 1000, 5000), (0, -6, -20))
     a, b = noise_bed(rng, 10 * SR, pool), noise_bed(rng, 10 * SR, pool)
     assert abs(float(np.corrcoef(a, b)[0, 1])) < 0.02
 
@@ -50,3 +50,14 @@ def test_distant_babble_is_voiced_at_its_pitch_not_at_the_block_rate() -> None:
 
     low = SR // 4
     assert repetition(_babble(20 * low, low, np.random.default_rng(1), 3), low) < 0.1
+
+
+def test_a_shape_has_one_library_made_once_and_read_only() -> None:
+    shape = ((100, 1000, 5000), (0, -6, -20))
+    pool = bed_pool(SR, *shape)
+    assert bed_pool(SR, *shape) is pool  # made once per process
+    assert not pool.flags.writeable
+    # The library is the shape's, not the process's: ints and floats name the same shape.
+    assert np.array_equal(bed_pool.__wrapped__(SR, (100.0, 1000.0, 5000.0), (0.0, -6.0, -20.0)), pool)
+    other = bed_pool(SR, (100, 1000, 5000), (0, -6, -21))
+    assert abs(float(np.corrcoef(pool.ravel(), other.ravel())[0, 1])) < 0.01

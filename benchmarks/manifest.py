@@ -344,7 +344,8 @@ class Manifest:
             or not isinstance(version, int)
             or version not in READABLE_DATASET_FORMATS
         ):
-            readable = " or ".join(str(v) for v in READABLE_DATASET_FORMATS)
+            *older, newest = (str(v) for v in READABLE_DATASET_FORMATS)
+            readable = f"{', '.join(older)} or {newest}" if older else newest
             raise DatasetError(
                 f"{where}: dataset format_version {version}, this software reads format_version "
                 f"{readable}; generate the dataset again with `msvdd-bench generate`"

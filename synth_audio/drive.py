@@ -16,7 +16,7 @@ from synth_audio.dsp import block_ramp, frac_phase
 
 BLOCK = 64
 """Samples per control block (1.45 ms at 44.1 kHz)."""
-CHUNK = 2**15
+CHUNK = 2**16
 """Samples per processing span of the dense sources (a multiple of BLOCK)."""
 GRAVITY = 9.81
 """Standard gravity, m/s^2."""

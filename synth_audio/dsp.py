@@ -9,12 +9,13 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.signal import lfilter
 
+from synth_audio import kernels
+
 _INT16_STD = float(np.sqrt((2.0**32 - 1.0) / 12.0))
 BED_SEGMENT = 2**16
 """Length of the shaped segments noise beds are woven from, samples (1.5 s at 44.1 kHz)."""
 BED_POOL = 8
 """Shaped segments per noise bed; every overlap-add snippet picks one at a random circular offset."""
-_SPAN = 2**15
 TABLE_SIZE = 2**16
 """Points per cycle of the harmonic wavetables (a power of two)."""
 
@@ -200,18 +201,14 @@ def overlap_add(n: int, positions: np.ndarray, amps: np.ndarray, kernel: np.ndar
 
 def overlap_add_into(out: np.ndarray, positions: np.ndarray, amps: np.ndarray, kernel: np.ndarray) -> None:
     """out += sum of `amps[i] * kernel` placed at integer sample `positions[i]` (in place, clipped)."""
-    n = out.shape[0]
     if positions.size == 0 or kernel.size == 0:
         return
-    idx = positions.astype(np.int64)[:, None] + np.arange(kernel.size)[None, :]
-    vals = amps.astype(np.float32)[:, None] * kernel.astype(np.float32)[None, :]
-    ok = (idx >= 0) & (idx < n)
-    idx, vals = idx[ok], vals[ok]
-    if idx.size == 0:
-        return
-    lo = int(idx.min())
-    summed = np.bincount(idx - lo, weights=vals)
-    out[lo : lo + summed.size] += summed.astype(np.float32)
+    kernels.overlap_add_into(
+        out,
+        np.ascontiguousarray(positions, dtype=np.int64),
+        np.ascontiguousarray(amps, dtype=np.float32),
+        np.ascontiguousarray(kernel, dtype=np.float32),
+    )
 
 
 def add_at(out: np.ndarray, start: int, signal: np.ndarray) -> None:
@@ -238,11 +235,8 @@ def fractional_taps(delay: float) -> tuple[int, np.ndarray]:
 def delay_into(out: np.ndarray, x: np.ndarray, delay: float, gain: float, start: int = 0) -> None:
     """out[start + n] += gain * x delayed by a fractional number of samples (Lagrange, in place)."""
     m, taps = fractional_taps(delay)
-    weights = [np.float32(gain * t) for t in taps]
-    for a in range(0, x.shape[0], _SPAN):  # span-wise, so the products stay in cache
-        part = x[a : a + _SPAN]
-        for k in range(4):
-            add_at(out, start + m + k + a, part * weights[k])
+    weights = (taps.astype(np.float64) * gain).astype(np.float32)
+    kernels.fractional_delay_into(out, np.ascontiguousarray(x, dtype=np.float32), m, weights, start)
 
 
 def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: float) -> np.ndarray:

@@ -58,10 +58,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from synth_audio import kernels
 from synth_audio.config import AudioConfig
 from synth_audio.dsp import (
     add_at,
-    block_ramp,
     damped_modes,
     frac_phase,
     harmonic_table,
@@ -557,36 +557,6 @@ def plan(
     return Emission(signal=signal, start=event.onset, origin=origin, velocity=velocity)
 
 
-def _lagrange(padded: np.ndarray, i: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """x at positions i + f (i integer, 0 <= f < 1) by third-order Lagrange interpolation over x[i-1 .. i+2].
-
-    `padded` is x with `_PAD` zeros on either side; reads beyond them are clipped to those zeros. `i` is
-    modified in place.
-    """
-    one, two = np.float32(1.0), np.float32(2.0)
-    j = i
-    j += _PAD - 1  # index of x[i - 1] in `padded`
-    low = f - one
-    low *= f - two  # (f - 1)(f - 2)
-    high = f + one
-    high *= f  # (f + 1) f
-    y = np.take(padded, j, mode="clip")
-    y *= f * low * np.float32(-1.0 / 6.0)
-    j += 1
-    tap = np.take(padded, j, mode="clip")
-    tap *= (f + one) * low * np.float32(0.5)
-    y += tap
-    j += 1
-    tap = np.take(padded, j, mode="clip")
-    tap *= high * (f - two) * np.float32(-0.5)
-    y += tap
-    j += 1
-    tap = np.take(padded, j, mode="clip")
-    tap *= high * (f - one) * np.float32(1.0 / 6.0)
-    y += tap
-    return y
-
-
 def _paths(
     emission: Emission, listener: Listener, ctrl_t: np.ndarray, speed_of_sound: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -619,8 +589,8 @@ def receive_into(
     """Add an emission as heard at the two microphones to the (2, n) `out` (in place).
 
     Retarded times and gains are computed every `_CONTROL` samples (`_paths`) and ramped linearly in
-    between; the signal is read there by Lagrange interpolation, span by span, skipping spans whose part of
-    the signal is silent (footsteps, bounces and barks are mostly silence).
+    between; the signal is read there by Lagrange interpolation (`kernels.lagrange_read`), span by span,
+    skipping spans whose part of the signal is silent (footsteps, bounces and barks are mostly silence).
 
     Returns:
         (sample at which the sound first reaches the robot, distance then, m): where the room send goes.
@@ -651,7 +621,6 @@ def receive_into(
     blocks = -(-sig.size // _QUIET)
     loud = np.abs(np.pad(sig, (0, blocks * _QUIET - sig.size))).reshape(blocks, _QUIET).max(axis=1) > 0
     live = np.concatenate([[0], np.cumsum(loud)])
-    ramp = np.arange(_CONTROL, dtype=np.float32) / np.float32(_CONTROL)
     step = _SPAN // _CONTROL
     for ch in range(2):
         pos, gain = positions[ch], gains[ch]
@@ -663,18 +632,9 @@ def receive_into(
             q1 = min(max(hi // _QUIET + 1, 0), blocks)
             if live[q1] == live[q0]:  # silent, or outside the signal
                 continue
-            base = np.floor(pos[k0:k1])
-            offset = np.diff(pos[k0 : k1 + 1]).astype(np.float32)[:, None] * ramp
-            offset += (pos[k0:k1] - base).astype(np.float32)[:, None]
-            whole = np.floor(offset)
-            offset -= whole
-            i = whole.astype(np.int64)
-            i += base.astype(np.int64)[:, None]
-            y = _lagrange(padded, i.ravel(), offset.ravel())
-            y *= block_ramp(gain[k0 : k1 + 1].astype(np.float32), _CONTROL, (k1 - k0) * _CONTROL)
             s0 = a + k0 * _CONTROL
             s1 = min(a + k1 * _CONTROL, b)
-            out[ch, s0:s1] += y[: s1 - s0]
+            kernels.lagrange_read(padded, _PAD, pos[k0 : k1 + 1], gain[k0 : k1 + 1], _CONTROL, out[ch, s0:s1])
     return first, r0
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.trace import RobotInfo
+from synth_audio import kernels
 from synth_audio.dsp import block_ramp, frac_phase
 
 BLOCK = 64
@@ -65,6 +66,25 @@ class Drive:
             return block_ramp(values, BLOCK, self.n)
         b0, b1 = span[0] // BLOCK, -(-span[1] // BLOCK)
         return block_ramp(values[..., b0 : b1 + 1], BLOCK, span[1] - span[0])
+
+    def boundaries(self, values: np.ndarray, span: tuple[int, int]) -> np.ndarray:
+        """The block-boundary values (..., nb+1) that cover one span (its first block's start to its last
+        block's end)."""
+        b0, b1 = span[0] // BLOCK, -(-span[1] // BLOCK)
+        return values[..., b0 : b1 + 1]
+
+    def index(self, wheel: int, multiple: float, span: tuple[int, int], size: int) -> np.ndarray:
+        """Per-sample nearest-point indices (int32) into a `size`-point table of one cycle (a power of two)
+        of `multiple` x the wheel's rotation, over one span (`kernels.table_index`)."""
+        cycles = self.boundaries(self.cycles[wheel], span) * multiple
+        return kernels.table_index(cycles, BLOCK, span[1] - span[0], size)
+
+    def add_ramped(
+        self, out: np.ndarray, signal: np.ndarray, values: np.ndarray, span: tuple[int, int]
+    ) -> None:
+        """out += signal x the block-boundary `values` ramped per sample, over one span (`out` and `signal`
+        are the span's samples; `kernels.add_ramped`)."""
+        kernels.add_ramped(out, signal, self.boundaries(values, span), BLOCK)
 
     def phase(self, wheel: int, multiple: float, span: tuple[int, int] | None = None) -> np.ndarray:
         """Per-sample phase in cycles (wrapped near [0, 1)) of `multiple` x the wheel's rotation."""

@@ -85,14 +85,11 @@ def noise_bed(rng: np.random.Generator, n: int, pool: np.ndarray) -> np.ndarray:
     if n <= 0:
         return np.zeros(0, dtype=np.float32)
     hop = size // 2
-    window = _sine_window(size)
-    out = np.zeros(n + 2 * size, dtype=np.float32)
-    for start in range(0, n + hop, hop):  # out[hop:] is the bed: every sample is covered by two snippets
-        seg = pool[int(rng.integers(0, k))]
-        offset = int(rng.integers(0, size))
-        head = size - offset  # the segment read circularly from `offset`, windowed where it lands
-        out[start : start + head] += seg[offset:] * window[:head]
-        out[start + head : start + size] += seg[:offset] * window[head:]
+    count = -(-(n + hop) // hop)  # out[hop:] is the bed: every sample is covered by two snippets
+    segments = rng.integers(0, k, count)
+    offsets = rng.integers(0, size, count)
+    out = np.zeros(count * hop + size, dtype=np.float32)
+    kernels.weave(out, pool, segments, offsets, _sine_window(size), hop)
     return out[hop : hop + n]
 
 

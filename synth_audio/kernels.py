@@ -27,8 +27,12 @@ def overlap_add_into(
         a = np.float32(amps[e])
         lo = max(0, -p)
         hi = min(size, n - p)
-        for k in range(lo, hi):
-            out[p + k] += a * kernel[k]
+        if hi <= lo:
+            continue
+        o = out[p + lo : p + hi]
+        taps = kernel[lo:hi]
+        for k in range(o.shape[0]):  # indices from 0: no wraparound test, so the loop vectorises
+            o[k] += a * taps[k]
 
 
 @njit(cache=True, nogil=True)
@@ -84,13 +88,21 @@ def fractional_delay_into(
     n = out.shape[0]
     m = x.shape[0]
     t0, t1, t2, t3 = taps[0], taps[1], taps[2], taps[3]
-    lo = max(start + shift, 0)
-    hi = min(start + shift + m + 3, n)
-    for q in range(lo, hi):
-        i = q - start - shift  # x index of tap 0
-        if 3 <= i < m:
-            out[q] += t0 * x[i] + t1 * x[i - 1] + t2 * x[i - 2] + t3 * x[i - 3]
-        else:
+    origin = start + shift  # out index of x[0] through tap 0
+    lo = max(origin, 0)
+    hi = min(origin + m + 3, n)
+    inner_lo = min(max(origin + 3, lo), hi)  # from here on every tap reads inside x ...
+    inner_hi = max(min(origin + m, hi), inner_lo)  # ... up to here
+    o = out[inner_lo:inner_hi]  # the interior, in one loop that vectorises
+    x0 = x[inner_lo - origin : inner_hi - origin]
+    x1 = x[inner_lo - origin - 1 : inner_hi - origin - 1]
+    x2 = x[inner_lo - origin - 2 : inner_hi - origin - 2]
+    x3 = x[inner_lo - origin - 3 : inner_hi - origin - 3]
+    for j in range(o.shape[0]):
+        o[j] += t0 * x0[j] + t1 * x1[j] + t2 * x2[j] + t3 * x3[j]
+    for edge in range(2):  # the first three and last three samples, where some taps read outside x
+        for q in range(lo, inner_lo) if edge == 0 else range(inner_hi, hi):
+            i = q - origin  # x index of tap 0
             acc = np.float32(0.0)
             if 0 <= i < m:
                 acc += t0 * x[i]
@@ -101,3 +113,71 @@ def fractional_delay_into(
             if 0 <= i - 3 < m:
                 acc += t3 * x[i - 3]
             out[q] += acc
+
+
+@njit(cache=True, nogil=True)
+def table_index(cycles: np.ndarray, block: int, n: int, size: int) -> np.ndarray:  # pragma: no cover
+    """(n,) int32 nearest-point indices into a power-of-two table of `size` points (one cycle) of the phase
+    whose cycle counts at block boundaries are `cycles` (float64, linear within a block)."""
+    out = np.empty(n, dtype=np.int32)
+    mask = size - 1
+    for b in range((n + block - 1) // block):
+        start = b * block
+        c0 = cycles[b] - np.floor(cycles[b])
+        dc = (cycles[b + 1] - cycles[b]) / block
+        o = out[start : start + block]
+        for i in range(o.shape[0]):
+            o[i] = np.int32(int((c0 + dc * i) * size) & mask)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def add_ramped(out: np.ndarray, signal: np.ndarray, env: np.ndarray, block: int) -> None:  # pragma: no cover
+    """out[j] += signal[j] e(j) (float32, in place), e linear within each block between its values at the
+    block boundaries `env` (len(out) / block + 1 of them)."""
+    n = out.shape[0]
+    for b in range((n + block - 1) // block):
+        start = b * block
+        e0 = np.float32(env[b])
+        de = (np.float32(env[b + 1]) - e0) / np.float32(block)
+        o = out[start : start + block]
+        x = signal[start : start + block]
+        for i in range(o.shape[0]):  # indices from 0: no wraparound test, so the loop vectorises
+            o[i] += x[i] * (e0 + de * np.float32(i))
+
+
+@njit(cache=True, nogil=True)
+def weave(
+    out: np.ndarray, pool: np.ndarray, segments: np.ndarray, offsets: np.ndarray, window: np.ndarray, hop: int
+) -> None:  # pragma: no cover - compiled
+    """out[s hop + j] += pool[segments[s]][(offsets[s] + j) mod size] window[j] for every snippet s and
+    j < size (float32, in place; `out` must hold len(segments) x hop + size samples)."""
+    size = window.shape[0]
+    for s in range(segments.shape[0]):
+        seg = pool[segments[s]]
+        offset = offsets[s]
+        head = size - offset  # the segment from `offset` to its end, then from its start
+        o = out[s * hop : s * hop + head]
+        x = seg[offset:]
+        w = window[:head]
+        for j in range(head):
+            o[j] += x[j] * w[j]
+        o = out[s * hop + head : s * hop + size]
+        x = seg[:offset]
+        w = window[head:]
+        for j in range(offset):
+            o[j] += x[j] * w[j]
+
+
+@njit(cache=True, nogil=True)
+def soft_limit(x: np.ndarray, knee: float) -> None:  # pragma: no cover - compiled
+    """Every sample of x (float32, C order, in place): identity up to |x| = knee, then
+    sign(x) (knee + (1 - knee) tanh((|x| - knee) / (1 - knee))) towards full scale."""
+    flat = x.reshape(-1)
+    span = 1.0 - knee
+    for i in range(flat.shape[0]):
+        v = flat[i]
+        m = abs(v)
+        if m > knee:
+            y = knee + span * np.tanh((m - knee) / span)
+            flat[i] = np.float32(y if v > 0 else -y)

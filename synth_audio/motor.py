@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
-from synth_audio.dsp import TABLE_SIZE, frac_phase, harmonic_table, table_index
+from synth_audio.dsp import TABLE_SIZE, frac_phase, harmonic_table
 
 _SHAFT = ((1, 0.18), (2, 0.28), (3, 0.1))
 """(harmonic of the shaft, weight): mechanical unbalance and misalignment."""
@@ -96,24 +96,24 @@ def motor_wheel(
         out = np.zeros(drive.n, dtype=np.float32)
     for span in drive.spans():
         a, b = span
-        shaft = drive.phase(wheel, robot.gear_ratio, span)
-        idx = table_index(shaft, TABLE_SIZE)
+        idx = drive.index(wheel, robot.gear_ratio, span, TABLE_SIZE)
         tonal = np.take(table, idx)
-        for gate, k, ph in gated:
-            tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
-            tone *= drive.ramp(gate, span)
-            tonal += tone
-        tonal *= drive.ramp(tone_env, span)
+        if gated:
+            shaft = drive.phase(wheel, robot.gear_ratio, span)
+            for gate, k, ph in gated:
+                tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
+                tone *= drive.ramp(gate, span)
+                tonal += tone
+        drive.add_ramped(out[a:b], tonal, tone_env, span)
         tmp = np.take(brush_mod, idx)
         tmp *= brush_noise[a:b]
-        tmp *= drive.ramp(brush_env, span)
-        tonal += tmp
+        drive.add_ramped(out[a:b], tmp, brush_env, span)
         if pwm and carrier is not None:
-            tmp = carrier[a:b] * drive.ramp(pwm_env, span)
+            whine = carrier[a:b]
             if sidebands:
-                tmp *= np.take(side_mod, idx)
-            tonal += tmp
-        out[a:b] += tonal
+                whine = np.take(side_mod, idx)
+                whine *= carrier[a:b]
+            drive.add_ramped(out[a:b], whine, pwm_env, span)
     return out
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from sim.trace import STRUCK_MASS, RobotInfo, Trace
 from synth_audio import ambience as amb
+from synth_audio import kernels
 from synth_audio import nearfield as nf
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
 from synth_audio.drive import Drive, build_drive, reference_torque
@@ -214,12 +215,9 @@ def reference_rms(robot: RobotInfo, config: AudioConfig) -> float:
 
 
 def _limit(x: np.ndarray) -> np.ndarray:
-    """Monotonic soft limiter: identity below the knee, tanh towards full scale above it (in place)."""
-    mag = np.abs(x)
-    over = mag > _LIMIT_KNEE
-    if np.any(over):
-        span = 1.0 - _LIMIT_KNEE
-        x[over] = np.sign(x[over]) * (_LIMIT_KNEE + span * np.tanh((mag[over] - _LIMIT_KNEE) / span))
+    """Monotonic soft limiter: identity below the knee, tanh towards full scale above it (in place;
+    `kernels.soft_limit`)."""
+    kernels.soft_limit(x, _LIMIT_KNEE)
     return x
 
 

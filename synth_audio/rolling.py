@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from synth_audio.drive import NOMINAL_SPEED, Drive
-from synth_audio.dsp import damped_modes, harmonic_table, overlap_add_into, wavetable, white
+from synth_audio.dsp import damped_modes, harmonic_table, overlap_add_into, white
 
 
 @dataclass(frozen=True)
@@ -70,12 +70,11 @@ def rolling_wheel(
     tread_env = surface.tread * speed_law(drive, wheel, 1.0)
     for span in drive.spans():
         a, b = span
-        part = noise[a:b] * drive.ramp(noise_env, span)
+        drive.add_ramped(out[a:b], noise[a:b], noise_env, span)
         if surface.tread > 0:
-            tone = wavetable(drive.phase(wheel, float(robot.tread_blocks), span), _TREAD_TABLE)
-            tone *= drive.ramp(tread_env, span)
-            part += tone
-        out[a:b] += part
+            idx = drive.index(wheel, float(robot.tread_blocks), span, _TREAD_TABLE.size)
+            tone = np.take(_TREAD_TABLE, idx)
+            drive.add_ramped(out[a:b], tone, tread_env, span)
     if surface.grain_per_m > 0:
         distance = drive.speed_mps[wheel][:-1] * np.diff(drive.block_time)
         pos, amp = poisson_events(rng, distance * surface.grain_per_m, drive.n)

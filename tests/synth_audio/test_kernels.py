@@ -86,3 +86,28 @@ def test_a_doppler_read_beyond_the_signal_reads_zeros() -> None:
     kernels.lagrange_read(padded, 4, np.array([-30.0, -14.0, 40.0, 60.0]), np.ones(4), 8, out)
     assert np.all(out[:8] == 0.0) and np.all(out[16:] == 0.0)  # before and after the signal
     assert np.any(out[8:16] != 0.0)  # the read sweeps across it
+
+
+def test_weaving_adds_each_snippet_read_circularly_under_the_window() -> None:
+    rng = np.random.default_rng(3)
+    size, hop = 16, 8
+    pool = rng.standard_normal((3, size)).astype(np.float32)
+    window = rng.uniform(0.0, 1.0, size).astype(np.float32)
+    segments, offsets = np.array([2, 0, 1, 2]), np.array([0, 5, 15, 9])
+    out = np.zeros(4 * hop + size, dtype=np.float32)
+    kernels.weave(out, pool, segments, offsets, window, hop)
+    expected = np.zeros(out.size)
+    for s, (seg, offset) in enumerate(zip(segments, offsets, strict=True)):
+        expected[s * hop : s * hop + size] += np.roll(pool[seg], -offset) * window
+    assert np.allclose(out, expected, atol=1e-6)
+
+
+def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monotonic_above() -> None:
+    x = np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1)
+    y = x.copy()
+    kernels.soft_limit(y, 0.5)
+    below = np.abs(x) <= 0.5
+    assert np.array_equal(y[below], x[below])
+    assert np.all(np.abs(y) < 1.0) and np.all(np.diff(y.ravel()) >= 0.0)
+    assert np.array_equal(np.sign(y), np.sign(x))
+    assert float(y.ravel()[-1]) == pytest.approx(0.5 + 0.5 * np.tanh(5.0), abs=1e-6)

@@ -114,6 +114,23 @@ def harmonic_table(
     return sfft.irfft(spectrum, size).astype(np.float32)
 
 
+def unit_table(harmonics: np.ndarray, amps: np.ndarray, phases: np.ndarray) -> np.ndarray:
+    """`harmonic_table` of a robot unit's fixed tones (motor, fan), made once per process for each set of
+    tones and read-only: a unit sounds the same in every episode."""
+    return _unit_table(
+        tuple(float(k) for k in harmonics), tuple(float(a) for a in amps), tuple(float(p) for p in phases)
+    )
+
+
+@functools.lru_cache(maxsize=64)
+def _unit_table(
+    harmonics: tuple[float, ...], amps: tuple[float, ...], phases: tuple[float, ...]
+) -> np.ndarray:
+    table = harmonic_table(np.array(harmonics), np.array(amps), np.array(phases))
+    table.setflags(write=False)
+    return table
+
+
 def wavetable(phase: np.ndarray, table: np.ndarray) -> np.ndarray:
     """Periodic waveform `table` (power-of-two size, one cycle) read at `phase` cycles (>= 0).
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.trace import RobotInfo
-from synth_audio.dsp import bed_pool, frac_phase, harmonic_table, noise_bed, normalise_rms, wavetable
+from synth_audio.dsp import bed_pool, frac_phase, noise_bed, normalise_rms, unit_table, wavetable
 
 FAN_DB = -20.0
 """RMS of the fan at the microphones re the unit's reference drive, dB (48 dB SPL at the default 68)."""
@@ -92,7 +92,7 @@ def fan_sound(fan: Fan, n: int, sample_rate: int, rng: np.random.Generator) -> n
     ks = np.array([1.0, b, 2.0 * b, 3.0 * b])
     amps = np.array([fan.shaft, *fan.harmonics])
     keep = ks * fan.rpm / 60.0 < 0.45 * sample_rate
-    table = harmonic_table(ks[keep], amps[keep], np.asarray(fan.phases)[keep])
+    table = unit_table(ks[keep], amps[keep], np.asarray(fan.phases)[keep])
     nb = -(-n // _BLOCK)
     cycles = np.arange(nb + 1, dtype=np.float64) * (_BLOCK / sample_rate) * (fan.rpm / 60.0)
     tones = normalise_rms(wavetable(frac_phase(cycles[None, :], _BLOCK, n)[0], table))

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
-from synth_audio.dsp import TABLE_SIZE, frac_phase, harmonic_table
+from synth_audio.dsp import TABLE_SIZE, frac_phase, unit_table
 
 _SHAFT = ((1, 0.18), (2, 0.28), (3, 0.1))
 """(harmonic of the shaft, weight): mechanical unbalance and misalignment."""
@@ -76,7 +76,7 @@ def motor_wheel(
     top = float(np.max(shaft_hz))
     ks, amps, phases = tone_table(drive, unit_rng)
     safe = ks * top <= limit
-    table = harmonic_table(ks[safe], amps[safe], phases[safe])
+    table = unit_table(ks[safe], amps[safe], phases[safe])
     gated = [
         ((k * shaft_hz <= limit).astype(np.float64) * a, k, p)
         for k, a, p in zip(ks[~safe], amps[~safe], phases[~safe], strict=True)

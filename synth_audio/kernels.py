@@ -181,3 +181,42 @@ def soft_limit(x: np.ndarray, knee: float) -> None:  # pragma: no cover - compil
             flat[i] = np.float32(knee + span * np.tanh((v - knee) / span))
         elif v < -knee:
             flat[i] = np.float32(-(knee + span * np.tanh((-v - knee) / span)))
+
+
+@njit(cache=True, nogil=True)
+def motor_mix(
+    out: np.ndarray,
+    idx: np.ndarray,
+    table: np.ndarray,
+    tone_env: np.ndarray,
+    brush_mod: np.ndarray,
+    brush_noise: np.ndarray,
+    brush_env: np.ndarray,
+    carrier: np.ndarray,
+    side_mod: np.ndarray,
+    pwm_env: np.ndarray,
+    block: int,
+) -> None:  # pragma: no cover - compiled
+    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j),
+    k = idx[j], every envelope linear within each block between its values at the block boundaries (float32,
+    in place); the last term only when `carrier` is not empty."""
+    n = out.shape[0]
+    whine = carrier.shape[0] > 0
+    for b in range((n + block - 1) // block):
+        start = b * block
+        t0 = np.float32(tone_env[b])
+        dt = (np.float32(tone_env[b + 1]) - t0) / np.float32(block)
+        n0 = np.float32(brush_env[b])
+        dn = (np.float32(brush_env[b + 1]) - n0) / np.float32(block)
+        o = out[start : start + block]
+        k = idx[start : start + block]
+        noise = brush_noise[start : start + block]
+        for i in range(o.shape[0]):
+            f = np.float32(i)
+            o[i] += table[k[i]] * (t0 + dt * f) + brush_mod[k[i]] * noise[i] * (n0 + dn * f)
+        if whine:
+            p0 = np.float32(pwm_env[b])
+            dp = (np.float32(pwm_env[b + 1]) - p0) / np.float32(block)
+            c = carrier[start : start + block]
+            for i in range(o.shape[0]):
+                o[i] += side_mod[k[i]] * c[i] * (p0 + dp * np.float32(i))

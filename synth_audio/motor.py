@@ -11,8 +11,11 @@ envelope being `_PWM_LEVEL * max(load, HOLD_LOAD)` for the whole episode (a trac
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from synth_audio import kernels
 from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
 from synth_audio.dsp import TABLE_SIZE, frac_phase, unit_table
 
@@ -86,35 +89,40 @@ def motor_wheel(
     pwm = carrier is not None  # the drivers switch whenever the robot is powered
     sidebands = robot.pwm_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
     pwm_env = _PWM_LEVEL * np.maximum(load, HOLD_LOAD)
-    # Modulations as functions of the shaft phase, read with the same table index as the tones:
-    # brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution); the PWM sidebands
-    # sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution).
-    x = np.arange(TABLE_SIZE) / TABLE_SIZE
-    brush_mod = (1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * robot.motor_pole_pairs * x)).astype(np.float32)
-    side_mod = (1.0 + 0.5 * np.cos(4.0 * np.pi * robot.motor_pole_pairs * x)).astype(np.float32)
+    brush_mod, side_mod = _modulations(int(robot.motor_pole_pairs))
     if out is None:
         out = np.zeros(drive.n, dtype=np.float32)
+    carrier_or_none = carrier if pwm and carrier is not None else _SILENT
+    side = side_mod if sidebands else _FLAT
     for span in drive.spans():
         a, b = span
         idx = drive.index(wheel, robot.gear_ratio, span, TABLE_SIZE)
-        tonal = np.take(table, idx)
         if gated:
             shaft = drive.phase(wheel, robot.gear_ratio, span)
             for gate, k, ph in gated:
                 tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
-                tone *= drive.ramp(gate, span)
-                tonal += tone
-        drive.add_ramped(out[a:b], tonal, tone_env, span)
-        tmp = np.take(brush_mod, idx)
-        tmp *= brush_noise[a:b]
-        drive.add_ramped(out[a:b], tmp, brush_env, span)
-        if pwm and carrier is not None:
-            whine = carrier[a:b]
-            if sidebands:
-                whine = np.take(side_mod, idx)
-                whine *= carrier[a:b]
-            drive.add_ramped(out[a:b], whine, pwm_env, span)
+                drive.add_ramped(out[a:b], tone, gate * tone_env, span)
+        kernels.motor_mix(
+            out[a:b], idx, table, drive.boundaries(tone_env, span), brush_mod, brush_noise[a:b],
+            drive.boundaries(brush_env, span), carrier_or_none[a:b], side, drive.boundaries(pwm_env, span),
+            BLOCK,
+        )  # fmt: skip
     return out
+
+
+_SILENT = np.zeros(0, dtype=np.float32)
+_FLAT = np.ones(TABLE_SIZE, dtype=np.float32)
+
+
+@functools.lru_cache(maxsize=16)
+def _modulations(pole_pairs: int) -> tuple[np.ndarray, np.ndarray]:
+    """(brush, PWM sideband) modulations as functions of the shaft phase (TABLE_SIZE points, read with the
+    tones' table index): brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution);
+    the PWM sidebands sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution)."""
+    x = np.arange(TABLE_SIZE) / TABLE_SIZE
+    brush = (1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * pole_pairs * x)).astype(np.float32)
+    side = (1.0 + 0.5 * np.cos(4.0 * np.pi * pole_pairs * x)).astype(np.float32)
+    return brush, side
 
 
 def pwm_carrier(drive: Drive, phase: float) -> np.ndarray | None:

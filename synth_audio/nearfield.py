@@ -62,14 +62,15 @@ from synth_audio import kernels
 from synth_audio.config import AudioConfig
 from synth_audio.dsp import (
     add_at,
+    bed_pool,
     damped_modes,
     frac_phase,
     harmonic_table,
+    noise_bed,
     normalise_rms,
     one_pole_lowpass,
     overlap_add_into,
     resonate,
-    shaped_noise,
     wavetable,
     white,
 )
@@ -436,7 +437,9 @@ def _dog(rng: np.random.Generator, sr: int) -> np.ndarray:
 def _cart(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> np.ndarray:
     """A cart or trolley rolling by: castor rolling noise, out-of-round wheel beat and rattle, unit RMS."""
     n = int(seconds * sr)
-    roll = shaped_noise(rng, n, sr, (80.0, 300.0, 1200.0, 4000.0, 12000.0), (-8.0, 0.0, -3.0, -12.0, -24.0))
+    roll = noise_bed(
+        rng, n, bed_pool(sr, (80.0, 300.0, 1200.0, 4000.0, 12000.0), (-8.0, 0.0, -3.0, -12.0, -24.0))
+    )
     wheel_hz = speed / (2.0 * np.pi * rng.uniform(0.04, 0.06))
     beat = wavetable(_phase(wheel_hz, n, sr, rng.uniform()), _SINE)
     beat *= np.float32(0.35)
@@ -448,8 +451,7 @@ def _cart(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> np
     weights = np.array([0.6, 1.0, 0.8, 0.5, 0.3])
     kernel = damped_modes(modes, t60, weights, rng.uniform(0.0, 2.0 * np.pi, 5), sr, int(0.08 * sr))
     rattle = np.zeros(n, dtype=np.float32)
-    for at, amp in zip(rng.integers(0, max(n, 1), k), rng.exponential(1.0, k), strict=True):
-        add_at(rattle, int(at), kernel * np.float32(amp))
+    overlap_add_into(rattle, rng.integers(0, max(n, 1), k), rng.exponential(1.0, k), kernel)
     out = roll + normalise_rms(rattle) * np.float32(10.0 ** (rng.uniform(-6.0, 0.0) / 20.0))
     return normalise_rms(_fade(out, sr, 0.5))
 
@@ -471,7 +473,9 @@ def _robot(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> n
         pwm = wavetable(_phase(pwm_hz, n, sr), _SINE)
         pwm *= np.float32(0.25)
         out += pwm
-    roll = shaped_noise(rng, n, sr, (100.0, 400.0, 1500.0, 4000.0, 10000.0), (-10.0, -4.0, 0.0, -4.0, -14.0))
+    roll = noise_bed(
+        rng, n, bed_pool(sr, (100.0, 400.0, 1500.0, 4000.0, 10000.0), (-10.0, -4.0, 0.0, -4.0, -14.0))
+    )
     out += roll * np.float32(10.0 ** (rng.uniform(-6.0, 0.0) / 20.0))
     return normalise_rms(_fade(out, sr, 0.5))
 
@@ -479,7 +483,9 @@ def _robot(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> n
 def _bicycle(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> np.ndarray:
     """A bicycle or scooter rolling by: tyre hiss and, while coasting, freewheel ticking; unit RMS."""
     n = int(seconds * sr)
-    hiss = shaped_noise(rng, n, sr, (200.0, 800.0, 2500.0, 6000.0, 14000.0), (-14.0, -6.0, 0.0, -4.0, -16.0))
+    hiss = noise_bed(
+        rng, n, bed_pool(sr, (200.0, 800.0, 2500.0, 6000.0, 14000.0), (-14.0, -6.0, 0.0, -4.0, -16.0))
+    )
     tick_hz = speed / (2.0 * np.pi * 0.34) * float(rng.choice([18, 24, 36]))  # wheel rev/s x pawl points
     pos = np.arange(0.0, n, sr / tick_hz) + rng.uniform(0.0, sr / tick_hz)
     pos = pos + rng.normal(0.0, 0.03 * sr / tick_hz, pos.size)

@@ -1,7 +1,10 @@
-"""Compiled loops (numba) for the two shapes numpy handles badly: scattering many copies of a kernel into a
-signal (overlap-add) and reading a signal at moving fractional positions (a Doppler path). Numpy builds an
-index per product and sums with `bincount`, or makes a pass and a temporary per tap; a loop touches each
-output sample once.
+"""Compiled loops (numba) for the audio's per-sample work, where numpy needs a pass and a temporary per
+product, or an index per product: a wheel's motor (`motor_mix`), envelopes ramped within control blocks
+(`add_ramped`), wavetable indices (`table_index`), scattering copies of a kernel (`overlap_add_into`), a
+fixed fractional delay (`fractional_delay_into`), reading a signal at moving fractional positions (a Doppler
+path, `lagrange_read`), weaving noise beds (`weave`) and the limiter (`soft_limit`). Each touches every
+output sample once. Loops index array slices from 0: an index that might be negative costs a wraparound test
+per sample, which stops LLVM vectorising the loop.
 
 Compiled without fast-math, so the same inputs give the same samples on the same machine; `cache=True`
 keeps the machine code beside the module (`__pycache__`), so a worker process loads it instead of

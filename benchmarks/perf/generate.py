@@ -40,7 +40,8 @@ STAGE = PerfStage(
     name="generate",
     measure=_measure,
     describe={
-        "generate_rtf": "episode seconds (physics + binaural audio + files) generated per second, one core",
+        "generate_rtf": "episode seconds (physics + binaural audio + files) generated per second, one core "
+        "(target >= 90)",
         "generate_vs_fft": "generate wall time / one FFT convolution as long as the episodes' audio (stereo, "
         "4096 taps) in the same process (lower is better)",
     },

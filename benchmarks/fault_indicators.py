@@ -96,6 +96,8 @@ def strike_statistic(
     most of the window (a bearing's balls above about 2 rev/s), each gate reaches at most a quarter of the
     window's mean pass interval either side, so that at least about half of the window is left to compare
     with."""
+    if pooling not in PASS_POOLINGS:
+        raise ValueError(f"pooling {pooling!r} is unknown; allowed: {', '.join(PASS_POOLINGS)}")
     cycles = np.floor(order * (angle - phase) / (2 * np.pi))
     hit = np.zeros(angle.shape, dtype=bool)
     hit[:, 1:] = cycles[:, 1:] != cycles[:, :-1]

@@ -49,6 +49,8 @@ def test_the_strike_statistic_pools_each_pass_log_ratio_as_a_mean_or_a_t_statist
         assert mean[0] == pytest.approx(np.log(ratio))
     still = np.full((1, n), 0.5)  # no pass: no evidence
     assert statistic(power, still, 1.0, 1.0, rate)[0] == 0.0
+    with pytest.raises(ValueError, match=r"pooling 'median' is unknown; allowed: mean, t"):
+        fault_indicators.strike_statistic(power, angle, 1.0, 3.0, rate, pooling="median")
     # the same energy in one pass: that gate stands out 6 x as far, the other five not at all; it adds its
     # log ratio once
     once = np.ones((1, n))

@@ -1,6 +1,6 @@
 """Compiled loops (numba) for the audio's per-sample work, where numpy needs a pass and a temporary per
 product, or an index per product: a wheel's motor (`motor_mix`), envelopes ramped within control blocks
-(`add_ramped`), wavetable indices (`table_index`), scattering copies of a kernel (`overlap_add_into`), a
+(`add_ramped`), wavetable indices (`block_table_index`), scattering copies of a kernel (`overlap_add_into`), a
 fixed fractional delay (`fractional_delay_into`), reading a signal at moving fractional positions (a Doppler
 path, `lagrange_read`), weaving noise beds (`weave`) and the limiter (`soft_limit`). Each touches every
 output sample once. Loops index array slices from 0: an index that might be negative costs a wraparound test
@@ -119,7 +119,7 @@ def fractional_delay_into(
 
 
 @njit(cache=True, nogil=True)
-def table_index(cycles: np.ndarray, block: int, n: int, size: int) -> np.ndarray:  # pragma: no cover
+def block_table_index(cycles: np.ndarray, block: int, n: int, size: int) -> np.ndarray:  # pragma: no cover
     """(n,) int32 nearest-point indices into a power-of-two table of `size` points (one cycle) of the phase
     whose cycle counts at block boundaries are `cycles` (float64, linear within a block)."""
     out = np.empty(n, dtype=np.int32)

@@ -111,3 +111,15 @@ def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monoton
     assert np.all(np.abs(y) < 1.0) and np.all(np.diff(y.ravel()) >= 0.0)
     assert np.array_equal(np.sign(y), np.sign(x))
     assert float(y.ravel()[-1]) == pytest.approx(0.5 + 0.5 * np.tanh(5.0), abs=1e-6)
+
+
+def test_block_table_indices_are_the_ramped_phase_read_to_the_nearest_point() -> None:
+    from synth_audio.dsp import frac_phase, table_index
+
+    rng = np.random.default_rng(4)
+    cycles = np.cumsum(rng.uniform(-0.2, 0.9, 41))  # forwards and backwards, many cycles
+    got = kernels.block_table_index(cycles, 64, 40 * 64 - 5, 4096)
+    expected = table_index(frac_phase(cycles[None, :], 64, 40 * 64 - 5)[0], 4096)
+    assert got.dtype == np.int32 and got.shape == expected.shape
+    gap = np.abs(got.astype(np.int64) - expected)
+    assert np.all(np.minimum(gap, 4096 - gap) <= 1)  # float64 against float32 phases: one point at most

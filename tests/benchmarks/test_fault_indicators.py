@@ -252,3 +252,29 @@ def test_a_simulated_out_of_round_wheel_rises_in_phase_with_its_defect(wheel: in
     )
     assert np.all(np.argmax(value, axis=1) == 0)  # in phase with the defect the physics placed
     assert np.all(value[:, 0] > 0.3)  # and far above what noise gives (about 0.05)
+
+
+def test_a_loose_hubs_vibration_is_the_vertical_channels_power_in_the_chassis_band() -> None:
+    t = np.arange(IMU_LEN) / IMU_RATE
+    audio = np.zeros((1, AUDIO_LEN, 2))
+
+    def vibration(channel: int, hz: float, amplitude: float) -> float:
+        imu7 = np.zeros((1, 7, IMU_LEN))
+        imu7[0, channel] = amplitude * np.sin(2 * np.pi * hz * t)
+        prep = fault_indicators.prepare("loose_wheel", audio, imu7)
+        assert prep.vibration is not None
+        return float(prep.vibration[0])
+
+    channels = fault_indicators.VIBRATION_CHANNELS
+    low, high = fault_indicators.VIBRATION_BAND
+    quiet = float(np.log(1e-20))  # no power in any channel
+    assert vibration(channels[0], 12.0, 0.0) == pytest.approx(quiet)
+    # a 12 Hz ring of amplitude a in one of the channels: mean power a^2 / 2 there, nothing in the others
+    for channel in channels:
+        expected = (np.log(2.0**2 / 2 + 1e-20) + (len(channels) - 1) * quiet) / len(channels)
+        assert vibration(channel, 12.0, 2.0) == pytest.approx(expected)
+    # outside the band, or in a channel a vertical strike does not move (surge, sway, yaw): nothing
+    assert vibration(channels[0], low / 2, 2.0) == pytest.approx(quiet)
+    assert vibration(channels[0], high + 10.0, 2.0) == pytest.approx(quiet)
+    for channel in sorted(set(range(7)) - set(channels)):
+        assert vibration(channel, 12.0, 2.0) == pytest.approx(quiet)

@@ -35,8 +35,10 @@ class MSVDDConfig:
     """Fusion: "cross_attention" (paper), or the ablation's "concat", "sum", "product"."""
     pooling: str = "mean+max"
     """How the fusion pools a token sequence before projecting it to z: "mean+max" (their sum per feature: a
-    max keeps a short transient that a mean over the tokens dilutes) or "stats" (statistics pooling: mean,
-    standard deviation and max over the tokens side by side, so that level, rhythm and peak stay apart)."""
+    max keeps a short transient that a mean over the tokens dilutes), "stats" (statistics pooling: mean,
+    standard deviation and max over the tokens side by side, so that level, rhythm and peak stay apart) or
+    "modulation" (mean, max and the standard deviation split into octave bands of modulation frequency, so
+    that a rhythm's rate stays apart too; `msvdd.network.modulation_bands`)."""
     audio_frontend: str = "waveform"
     """Audio input: "waveform" (paper: raw-waveform CRNN) or "logmel" (spectrogram 2-D CNN); see frontend."""
     imu_input: str = "z"

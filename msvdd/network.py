@@ -11,7 +11,8 @@ Shapes (defaults, d = 32, s = 32):
 - `Fusion("cross_attention")`: audio tokens query IMU tokens and IMU tokens query audio tokens
   (softmax(Q K^T / sqrt(d)) V over the real sequences), each followed by an MLP with residuals, pooled
   (`pool`: mean + max over tokens, a mean alone dilutes a 30 ms impact among 49 tokens; or statistics
-  pooling, mean, std and max side by side), summed and projected to s. The ablation variants concatenate,
+  pooling, mean, std and max side by side; or modulation pooling, the std split into octave bands of
+  modulation frequency), summed and projected to s. The ablation variants concatenate,
   add or multiply the pooled encoder features.
 - `AudioDecoder` (six transposed convolutions), `LogMelDecoder` (a per-frame MLP) and `ImuDecoder` (LSTM
   layers) reconstruct the inputs from the encoders' token sequences.
@@ -19,6 +20,7 @@ Shapes (defaults, d = 32, s = 32):
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -31,8 +33,13 @@ from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_N_MELS, check_frontend
 
 FUSIONS = ("cross_attention", "concat", "sum", "product")
 """Fusion variants: the paper's cross-attention and the three ablation alternatives."""
-POOLINGS = ("mean+max", "stats")
+POOLINGS = ("mean+max", "stats", "modulation")
 """How a token sequence is pooled before the projection to z (`pool`)."""
+MODULATION_EDGES = (1, 2, 4, 8, 16)
+"""Lower edges of the "modulation" pooling's octave bands, in DFT bins over a window's tokens (k cycles per
+window: k / 2 Hz for a 2 s window); the last band reaches the tokens' Nyquist bin. Bin 1 alone is half a
+hertz, a once-per-revolution defect at a slow 0.5 rev/s; its rhythm at 1 rev/s and its harmonics land in
+the next bands."""
 
 AUDIO_STRIDES = (5, 3, 3, 2, 2, 1)
 """Stride of each of the six audio convolutions; their product (180) is the audio samples per token."""
@@ -77,17 +84,47 @@ def _conv_padding(stride: int) -> tuple[int, int]:
     return stride + 2 * pad, pad
 
 
+def modulation_bands(tokens: torch.Tensor) -> torch.Tensor:
+    """(N, T, d) -> (N, len(`MODULATION_EDGES`), d): the RMS of each feature's deviation from its mean over
+    the tokens in each octave band of modulation frequency (`MODULATION_EDGES`): the square root of the
+    band's share of the one-sided DFT power over the tokens. The bands' squares sum to the population
+    variance over the tokens (Parseval): the standard deviation split by how fast the feature swings, so
+    that a rhythm (a defect striking once per revolution) and its rate stay apart from noise of the same
+    level. The DFT is a product with a cosine and a sine basis (traceable for ONNX)."""
+    t = tokens.shape[1]
+    bins = torch.arange(t // 2 + 1, dtype=tokens.dtype, device=tokens.device)
+    steps = torch.arange(t, dtype=tokens.dtype, device=tokens.device)
+    phase = (2 * math.pi / t) * bins[:, None] * steps[None, :]  # (K, T)
+    centred = tokens - tokens.mean(dim=1, keepdim=True)
+    power = torch.einsum("kt,ntd->nkd", torch.cos(phase), centred) ** 2
+    power = power + torch.einsum("kt,ntd->nkd", torch.sin(phase), centred) ** 2
+    weight = torch.full((t // 2 + 1,), 2.0, dtype=tokens.dtype, device=tokens.device)
+    if t % 2 == 0:
+        weight[-1] = 1.0  # the Nyquist bin has no mirror image
+    power = power * weight[None, :, None] / t**2
+    edges = [*MODULATION_EDGES, t // 2 + 1]
+    return torch.stack(
+        [torch.sqrt(power[:, lo:hi].sum(dim=1) + 1e-12) for lo, hi in itertools.pairwise(edges)],
+        dim=1,
+    )
+
+
 def pool(tokens: torch.Tensor, kind: str = "mean+max") -> torch.Tensor:
-    """(N, T, d) -> (N, d) mean + max over the tokens (the max keeps short transients such as impacts), or,
-    `kind` "stats", (N, 3 d) their mean, standard deviation and max side by side (statistics pooling)."""
+    """(N, T, d) -> (N, d) mean + max over the tokens (the max keeps short transients such as impacts); or,
+    `kind` "stats", (N, 3 d) their mean, standard deviation and max side by side (statistics pooling); or,
+    `kind` "modulation", (N, (2 + len(`MODULATION_EDGES`)) d) their mean, max and the standard deviation
+    split into octave bands of modulation frequency (`modulation_bands`)."""
     if kind == "stats":
         return torch.cat([tokens.mean(dim=1), tokens.std(dim=1), tokens.amax(dim=1)], dim=1)
+    if kind == "modulation":
+        bands = modulation_bands(tokens).flatten(1)
+        return torch.cat([tokens.mean(dim=1), tokens.amax(dim=1), bands], dim=1)
     return tokens.mean(dim=1) + tokens.amax(dim=1)
 
 
 def pooled_width(d: int, kind: str) -> int:
     """Width of `pool`'s output for d-wide tokens."""
-    return 3 * d if kind == "stats" else d
+    return {"stats": 3 * d, "modulation": (2 + len(MODULATION_EDGES)) * d}.get(kind, d)
 
 
 class AudioEncoder(nn.Module):

@@ -159,6 +159,7 @@ def test_export_api_for_the_papers_waveform_configuration(tmp_path: Path) -> Non
         {"use_audio": False, "frame_density": True},
         {"svdd_fit": "frozen", "bias_free": True},
         {"svdd_fit": "frozen", "bias_free": True, "use_mahalanobis": False},
+        {"svdd_fit": "frozen", "bias_free": True, "pooling": "modulation"},
     ],
     ids=lambda o: "-".join(f"{k}={v}" for k, v in o.items()),
 )

@@ -7,7 +7,16 @@ import torch
 
 from msvdd.config import MSVDDConfig
 from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_FRAMES, LOGMEL_N_MELS
-from msvdd.network import AUDIO_TOKENS, IMU_TOKENS, CrossAttentionBlock, Fusion, FusionNet, pool
+from msvdd.network import (
+    AUDIO_TOKENS,
+    IMU_TOKENS,
+    MODULATION_EDGES,
+    CrossAttentionBlock,
+    Fusion,
+    FusionNet,
+    modulation_bands,
+    pool,
+)
 
 
 def _inputs(n: int = 3, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -125,3 +134,36 @@ def test_statistics_pooling_keeps_mean_spread_and_peak_apart() -> None:
         assert out.z.shape == (3, 6) and out.z_a is not None and out.z_a.shape == (3, 24)
     with pytest.raises(ValueError, match="pooling"):
         MSVDDConfig.smoke(pooling="median")
+
+
+@pytest.mark.parametrize("count", [50, 67])  # the IMU's tokens and the log-mel frames per window
+def test_modulation_pooling_splits_the_spread_by_how_fast_a_feature_swings(count: int) -> None:
+    steps = torch.arange(count, dtype=torch.float64)
+    # feature 0 swings 3 times a window (band [2, 4)), feature 1 12 times (band [8, 16)), at amplitude 2:
+    # an RMS of sqrt(2) in that band and none elsewhere; feature 2 is constant
+    tokens = torch.stack(
+        [
+            2 * torch.cos(2 * torch.pi * 3 * steps / count),
+            1.0 + 2 * torch.sin(2 * torch.pi * 12 * steps / count + 0.3),
+            torch.full((count,), 4.0, dtype=torch.float64),
+        ],
+        dim=1,
+    )[None]
+    bands = modulation_bands(tokens)[0]  # (bands, d)
+    assert bands.shape == (len(MODULATION_EDGES), 3)
+    expected = torch.zeros(len(MODULATION_EDGES), 3, dtype=torch.float64)
+    expected[MODULATION_EDGES.index(2), 0] = expected[MODULATION_EDGES.index(8), 1] = 2**0.5
+    torch.testing.assert_close(bands, expected, atol=1e-5, rtol=1e-6)
+    # Parseval: the bands' squares add up to the population variance of any sequence
+    torch.manual_seed(count)
+    noise = torch.randn(4, count, 5, dtype=torch.float64)
+    torch.testing.assert_close(
+        (modulation_bands(noise) ** 2).sum(dim=1), noise.var(dim=1, unbiased=False), atol=1e-9, rtol=1e-9
+    )
+    pooled = pool(tokens, "modulation")
+    assert pooled.shape == (1, (2 + len(MODULATION_EDGES)) * 3)
+    mean, peak = tokens.mean(dim=1)[0], tokens.amax(dim=1)[0]  # mean, max, then the bands (band-major)
+    torch.testing.assert_close(pooled[0], torch.cat([mean, peak, bands.flatten()]))
+    for fusion in ("cross_attention", "concat"):
+        out = FusionNet(MSVDDConfig.smoke(d=8, s=6, fusion=fusion, pooling="modulation"))(*_inputs())
+        assert out.z.shape == (3, 6) and out.z_a is not None and out.z_a.shape == (3, 56)

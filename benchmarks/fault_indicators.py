@@ -14,6 +14,11 @@ and defect angle in turn):
 - where a bearing's strikes come from: how much more they stand out at the wheel's own microphone than at
   the other (a wheel's sound reaches the microphone on its side 8-11 dB louder, `synth_audio.spatial`; a
   sound from the other side or from the room does not);
+- where a bearing's whole sound comes from: the kind's band power at the wheel's own microphone over the
+  other's (`level_side`). The strikes' ratio to the rest of their window stops growing once the spall's
+  sound fills the band (its strikes and its growl grow together with the spall, `synth_audio.faults`), where
+  its share of the band, and with it the difference between the two sides, goes on growing: condition
+  monitoring's band-level trend beside the envelope's detection;
 - an out-of-round wheel's corner rising and falling once per revolution: the order-1 lines of the vertical
   acceleration, roll and pitch rates (below `condition.SPLIT_HZ`), added with the signs and phases a rise of
   that wheel's corner gives them and read in phase with the defect (`corner_rise`);
@@ -39,7 +44,9 @@ its flat), and an out-of-round wheel did not modulate the rolling sound. A worn 
 lines around it saturated at low severity (the whine's own wheel- and shaft-rate modulation lifts its
 neighbours), where the mesh group's level grows with the wear; its motor-shaft sidebands and the IMU's
 shaft-order line were weaker. A loose hub's once-per-revolution wobble (the order-1 line of the IMU's motion)
-and the side of a flat's or a loose hub's strikes only added nominal extremes to their kinds' evidence.
+and the side of a flat's or a loose hub's strikes only added nominal extremes to their kinds' evidence. A
+bearing's band level at its own microphone alone, or over the window's whole sound, found less and trended
+less with the spall than the difference between the sides.
 
 `Rarity` turns indicators into evidence: each one's upper tail under its distribution over nominal windows.
 """
@@ -75,7 +82,7 @@ channels (whose floor texture and yaw and surge vibration added nominal extremes
 bands and over other channel sets."""
 INDICATORS: dict[str, tuple[str, ...]] = {
     "flat_spot": ("strike_audio", "strike_tilt"),
-    "bearing": ("strike_audio", "strike_side"),
+    "bearing": ("strike_audio", "strike_side", "level_side"),
     "loose_wheel": ("strike_audio", "vibration_imu"),
     "out_of_round": ("corner_rise",),
     "motor_degradation": ("mesh_level_audio",),
@@ -223,7 +230,7 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
     """Filter (k, n, 2) two-microphone audio and the (k, 7, m) IMU channels for `kind`'s indicators."""
     wanted = INDICATORS[kind]
     envelope = envelope_time = tilt = rise = vibration = None
-    if "strike_audio" in wanted or "strike_side" in wanted:
+    if {"strike_audio", "strike_side", "level_side"} & set(wanted):
         stacked = np.moveaxis(audio, -1, 1).reshape(-1, audio.shape[1])  # (2k, n): each microphone
         band = envelope_band(kind, AUDIO_RATE)
         envelope, envelope_time = condition.block_envelope(stacked, AUDIO_RATE, band)
@@ -281,6 +288,12 @@ def indicators(
             column = strike_audio(site.microphone)
         elif name == "strike_side":
             column = strike_audio(site.microphone) - strike_audio(1 - site.microphone)
+        elif name == "level_side":
+            assert prep.envelope is not None
+            level = np.log(prep.envelope.mean(axis=-1) + 1e-20)  # (k, 2)
+            column = np.repeat(
+                (level[:, site.microphone] - level[:, 1 - site.microphone])[:, None], count, axis=1
+            )
         elif name == "strike_tilt":
             assert prep.tilt is not None
             channels = range(prep.tilt.shape[1])

@@ -69,7 +69,7 @@ def test_the_strike_statistic_pools_each_pass_log_ratio_as_a_mean_or_a_t_statist
     assert got == pytest.approx(np.sqrt(len(fast_passes)) * np.log(2.0), rel=0.05)
 
 
-def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_other() -> None:
+def test_a_strike_and_its_band_are_read_at_the_wheels_microphone_and_against_the_other() -> None:
     rng = np.random.default_rng(0)
     k = 3
     angle = np.outer(np.ones(k), np.linspace(0.0, 4 * np.pi, IMU_LEN, endpoint=False))  # 1 rev/s
@@ -82,7 +82,7 @@ def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_othe
         i = int(start * AUDIO_RATE)
         audio[:, i : i + burst.size, 0] += burst
     prep = fault_indicators.prepare("bearing", audio, imu7)
-    assert fault_indicators.INDICATORS["bearing"] == ("strike_audio", "strike_side")
+    assert fault_indicators.INDICATORS["bearing"] == ("strike_audio", "strike_side", "level_side")
     at_left, at_right = fault_indicators.WheelSite(0, 1.0, 1.0), fault_indicators.WheelSite(1, -1.0, 1.0)
     left = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_left, pooling="mean")[:, 0]
     right = fault_indicators.indicators(prep, angle, np.array([np.pi / 2]), 1.0, at_right, pooling="mean")
@@ -90,6 +90,13 @@ def test_a_strike_is_read_at_the_wheels_microphone_and_its_side_against_the_othe
     assert np.all(left[:, 0] > 2.0) and np.all(np.abs(right[:, 0]) < 0.5)  # heard at the left microphone
     np.testing.assert_allclose(left[:, 1], left[:, 0] - right[:, 0])  # louder there than at the other
     np.testing.assert_allclose(right[:, 1], -left[:, 1])
+    assert np.all(left[:, 2] > 0.0)  # the band is louder at the left microphone, by what the strikes add
+    np.testing.assert_allclose(right[:, 2], -left[:, 2])
+    # the same sound twice as loud at one microphone: the band's power there is four times the other's
+    louder = np.stack([2.0 * audio[..., 1], audio[..., 1]], axis=-1)
+    doubled = fault_indicators.prepare("bearing", louder, imu7)
+    sides = fault_indicators.indicators(doubled, angle, np.array([np.pi / 2]), 1.0, at_left, pooling="mean")
+    np.testing.assert_allclose(sides[:, 0, 2], np.log(4.0), rtol=1e-9)
     layout = np.array([[0.18, 0.225, 0.0], [0.18, -0.225, 0.0], [-0.18, 0.225, 0.0], [-0.18, -0.225, 0.0]])
     microphones = np.array([[0.05, 0.1, 0.12], [0.05, -0.1, 0.12]])
     sites = fault_indicators.wheel_sites(layout, microphones)

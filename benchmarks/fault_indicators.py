@@ -21,7 +21,11 @@ and defect angle in turn):
   monitoring's band-level trend beside the envelope's detection;
 - an out-of-round wheel's corner rising and falling once per revolution: the order-1 lines of the vertical
   acceleration, roll and pitch rates (below `condition.SPLIT_HZ`), added with the signs and phases a rise of
-  that wheel's corner gives them and read in phase with the defect (`corner_rise`);
+  that wheel's corner gives them and read in phase with the defect (`corner_rise`), and how large that
+  rise is: the vertical acceleration's once-per-revolution line in phase with the defect, in m/s^2
+  (`rise_level`: e w^2 for a runout e at wheel rate w). `corner_rise`'s lines, each relative to its
+  channel's deviation, stop growing once the rise dominates the chassis' slow motion; the rise's own size
+  goes on growing with the runout;
 - a loose hub's rattle: the power of the chassis' bounce and rock on its tyres (`VIBRATION_BAND` of the
   `VIBRATION_CHANNELS`), which every clunk rings;
 - worn gears: the level of the gear-mesh line with its wheel-order sidebands (mesh -+ 1 order) in the raw
@@ -46,7 +50,8 @@ neighbours), where the mesh group's level grows with the wear; its motor-shaft s
 shaft-order line were weaker. A loose hub's once-per-revolution wobble (the order-1 line of the IMU's motion)
 and the side of a flat's or a loose hub's strikes only added nominal extremes to their kinds' evidence. A
 bearing's band level at its own microphone alone, or over the window's whole sound, found less and trended
-less with the spall than the difference between the sides.
+less with the spall than the difference between the sides; an out-of-round wheel's rise as a runout (the
+acceleration over w^2) or as the line's magnitude trended less with the runout than `rise_level`.
 
 `Rarity` turns indicators into evidence: each one's upper tail under its distribution over nominal windows.
 """
@@ -84,7 +89,7 @@ INDICATORS: dict[str, tuple[str, ...]] = {
     "flat_spot": ("strike_audio", "strike_tilt"),
     "bearing": ("strike_audio", "strike_side", "level_side"),
     "loose_wheel": ("strike_audio", "vibration_imu"),
-    "out_of_round": ("corner_rise",),
+    "out_of_round": ("corner_rise", "rise_level"),
     "motor_degradation": ("mesh_level_audio",),
 }
 """The indicators read for each fault kind, in their feature columns' order (see the module)."""
@@ -98,7 +103,9 @@ noise as their root, and a window with one pass is as noisy as one with ten unde
 with the mean the windows with few passes carry every nominal extreme of a score that ranks windows of
 every speed against one nominal distribution (the fault-aware reference; chosen on dev over the mean:
 exponents 0.5 to 1 of the count scored alike, above 0)."""
-PHASED: frozenset[str] = frozenset({"strike_audio", "strike_side", "strike_tilt", "corner_rise"})
+PHASED: frozenset[str] = frozenset(
+    {"strike_audio", "strike_side", "strike_tilt", "corner_rise", "rise_level"}
+)
 """The indicators that depend on the defect's angle (the others read the wheel's angle only, or none)."""
 
 
@@ -191,6 +198,18 @@ def corner_rise(smooth: np.ndarray, angle: np.ndarray, phases: np.ndarray, site:
     return np.asarray(np.real(line[:, None] * np.exp(1j * np.asarray(phases))[None, :]))
 
 
+def rise_level(smooth: np.ndarray, angle: np.ndarray, phases: np.ndarray) -> np.ndarray:
+    """(k, P) the amplitude of the once-per-revolution vertical acceleration (the first of the (k, 3, m)
+    `RISE_CHANNELS`, m/s^2) in phase with a runout at each of the wheel angles `phases`: twice the real part
+    of its order-1 line (not relative to its deviation) turned by the phase a rise gives it (`corner_rise`).
+    A runout e at wheel rate w gives e w^2; a corner that falls where the defect would lift it, a negative
+    value; noise, 0 on average."""
+    vertical = smooth[:, 0] - smooth[:, 0].mean(axis=-1, keepdims=True)
+    line = (vertical * np.exp(-1j * angle)).mean(axis=-1)  # (k,)
+    turned = line[:, None] * -1j * np.exp(1j * np.asarray(phases))[None, :]
+    return np.asarray(2.0 * np.real(turned))
+
+
 def mesh_level(audio: np.ndarray, angle: np.ndarray, mesh: float) -> np.ndarray:
     """(k,) log level of the gear-mesh line at order `mesh` with its two wheel-order sidebands (mesh -+ 1), in
     (k, n) audio at wheel angles `angle` (k, n): the three lines' sum (relative to the audio's standard
@@ -237,7 +256,7 @@ def prepare(kind: str, audio: np.ndarray, imu7: np.ndarray) -> Prepared:
         envelope = envelope.reshape(len(audio), 2, -1)
     if "strike_tilt" in wanted:
         tilt = condition.band_pass(imu7[:, TILT_CHANNELS], IMU_RATE, (0.5, IMU_RATE / 2)) ** 2
-    if "corner_rise" in wanted:
+    if {"corner_rise", "rise_level"} & set(wanted):
         rise = condition.band_pass(imu7[:, RISE_CHANNELS], IMU_RATE, (0.3, condition.SPLIT_HZ))
     if "vibration_imu" in wanted:
         power = condition.band_pass(imu7[:, VIBRATION_CHANNELS], IMU_RATE, VIBRATION_BAND) ** 2
@@ -313,6 +332,9 @@ def indicators(
         elif name == "corner_rise":
             assert prep.rise is not None
             column = corner_rise(prep.rise, angle, phases, site)
+        elif name == "rise_level":
+            assert prep.rise is not None
+            column = rise_level(prep.rise, angle, phases)
         elif name == "vibration_imu":
             assert prep.vibration is not None
             column = np.repeat(prep.vibration[:, None], count, axis=1)

@@ -121,7 +121,7 @@ class OrderReference(WindowDetector):
     calibrated per revolution bin."""
 
     kind = "order-reference"
-    format_version = 6
+    format_version = 7
 
     def __init__(self, model: str = "skid4") -> None:
         super().__init__()

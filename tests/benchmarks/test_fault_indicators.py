@@ -14,7 +14,7 @@ from benchmarks.methods.orders import OrderReference, revolution_bin
 from benchmarks.metrics import roc_auc
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE, ModelFormatError, WindowError, Windows
 from sim import Fault, Scenario, simulate
-from sim.faults import envelope_band
+from sim.faults import RUNOUT_M, envelope_band
 from sim.scenario import Route, Unit, Waypoint
 
 
@@ -157,6 +157,23 @@ def test_a_corners_rise_adds_up_in_phase_with_the_signs_of_its_place_either_way_
     assert abs(quiet.mean()) < 0.01 and quiet.std() < 0.05
 
 
+def test_a_corners_rise_level_is_the_runouts_vertical_acceleration_in_phase() -> None:
+    rng = np.random.default_rng(3)
+    t = np.arange(IMU_LEN) / IMU_RATE
+    phi, e, w = 1.0, 0.004, 2 * np.pi * 1.5  # a 4 mm runout at 1.5 rev/s: three whole revolutions
+    phases = phi + np.array([0.0, np.pi / 2, np.pi])
+    for direction in (1.0, -1.0):
+        angle = direction * w * t
+        vertical = -e * w**2 * np.sin(angle - phi)  # the axle lifted by e sin(angle - phi)
+        motion = np.stack([vertical, np.zeros_like(t), np.zeros_like(t)])[None]
+        level = fault_indicators.rise_level(motion, angle[None], phases)[0]
+        np.testing.assert_allclose(level, [e * w**2, 0.0, -e * w**2], atol=1e-9)
+    noise = 0.1 * rng.normal(size=(200, 3, IMU_LEN))
+    angle = np.tile(w * t, (200, 1))
+    quiet = fault_indicators.rise_level(noise, angle, phases[:1])[:, 0]
+    assert abs(quiet.mean()) < 0.003 and quiet.std() < 0.02  # about 0.1 x 2 / sqrt(2 x 400)
+
+
 def test_the_mesh_level_is_the_mesh_line_and_its_wheel_order_sidebands() -> None:
     rng = np.random.default_rng(0)
     angle = np.cumsum(rng.uniform(0.0, 0.004, size=(2, AUDIO_LEN)), axis=1)  # about 2.8 revolutions
@@ -259,6 +276,13 @@ def test_a_simulated_out_of_round_wheel_rises_in_phase_with_its_defect(wheel: in
     )
     assert np.all(np.argmax(value, axis=1) == 0)  # in phase with the defect the physics placed
     assert np.all(value[:, 0] > 0.3)  # and far above what noise gives (about 0.05)
+    level = fault_indicators.rise_level(rise, np.stack([angle[s : s + IMU_LEN] for s in starts]), phases)
+    w = np.array([np.ptp(angle[s : s + IMU_LEN]) for s in starts]) / (IMU_LEN / IMU_RATE)
+    assert np.all(np.argmax(level, axis=1) == 0)
+    # a rigid chassis with one of its four corners lifted by e rises by about e / 4 at its centre, where the
+    # IMU is: about a quarter of the runout's e w^2 (the severity-1 runout `sim.faults.RUNOUT_M`)
+    ratio = level[:, 0] / (RUNOUT_M * w**2)
+    assert np.all((ratio > 0.15) & (ratio < 0.4)), ratio
 
 
 def test_a_loose_hubs_vibration_is_the_vertical_channels_power_in_the_chassis_band() -> None:

@@ -240,7 +240,8 @@ class Prepared:
     tilt: np.ndarray | None
     """(k, 2, m) the motion power (above 0.5 Hz) of the `TILT_CHANNELS` (strikes)."""
     rise: np.ndarray | None
-    """(k, 3, m) the smooth motion (below `condition.SPLIT_HZ`) of the `RISE_CHANNELS` (`corner_rise`)."""
+    """(k, 3, m) the smooth motion (below `condition.SPLIT_HZ`) of the `RISE_CHANNELS` (`corner_rise`,
+    `rise_level`)."""
     vibration: np.ndarray | None
     """(k,) mean over the `VIBRATION_CHANNELS` of the log of their power in the `VIBRATION_BAND`."""
 

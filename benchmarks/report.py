@@ -608,6 +608,7 @@ def result_tables(
         "",
         *_severity_table(per_method, intervals, h),
         *_severity_by_kind_table(intervals, h),
+        *_top_severity_by_kind_table(per_method, intervals, h),
     ]
 
 
@@ -724,6 +725,51 @@ def _severity_by_kind_table(intervals: RunIntervals | None, h: str = "##") -> li
     ]
     for kind in kinds:
         cells = [_auc_cell(intervals, reference, severity_key(b, kind)) or "n/a" for b in labels]
+        lines.append(f"| {kind} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def _top_severity_by_kind_table(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, h: str = "##"
+) -> list[str]:
+    """Every comparison, reference and naive method's fault AUC per fault kind (rows) in the highest severity
+    bin that holds fault windows, the highest point estimate of each row in bold; nothing without
+    severities or intervals."""
+    if intervals is None:
+        return []
+    names = [n for n in _breakdown_methods(per_method) if n in intervals.methods]
+    held = [
+        b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)
+    ]
+    if not held:
+        return []
+    top = held[-1]
+    kinds = sorted(
+        {
+            key.removeprefix("auc_").removesuffix(f"_severity_{top}")
+            for n in names
+            for key in intervals.methods[n].auc
+            if key.endswith(f"_severity_{top}") and key != severity_key(top)
+        }
+    )
+    if not kinds:
+        return []
+    lines = [
+        f"{h} Fault AUC (%) at severity {top} by fault kind (every method of the tables above; the highest"
+        " point estimate of a row in bold, which is not a ranking where the intervals overlap)",
+        "",
+        "| Fault kind | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for kind in kinds:
+        found = {n: intervals.methods[n].auc.get(severity_key(top, kind)) for n in names}
+        values = [iv.value for iv in found.values() if iv is not None and not math.isnan(iv.value)]
+        best = max(values) if values else math.nan
+        cells = []
+        for n in names:
+            iv = found[n]
+            cell = "n/a" if iv is None else format_interval(iv)
+            cells.append(f"**{cell}**" if iv is not None and iv.value == best else cell)
         lines.append(f"| {kind} | " + " | ".join(cells) + " |")
     return [*lines, ""]
 

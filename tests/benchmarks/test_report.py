@@ -235,6 +235,34 @@ def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
     assert len(lines) == 3
 
 
+def test_every_method_gets_its_fault_aucs_by_kind_in_the_top_severity_bin() -> None:
+    """Rows are the fault kinds, columns every method of the tables; each cell is that method's AUC of the
+    kind in the highest bin holding faults (0.75-1.00 here), the row's largest in bold."""
+    from benchmarks.report import severity_key
+    from benchmarks.uncertainty import format_interval
+
+    rows, severity = _severity_rows()
+    kinds = np.array([r.kind for r in rows])
+    scores = [_scores(rows, "msvdd", 0, 1.0), _scores(rows, "dae", 0, 0.2)]
+    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
+    run = auc_intervals(rows, scores, replicates=50, severity=severity)
+    text = markdown(INFO, per_method, run)
+    table = text.split("## Fault AUC (%) at severity 0.75-1.00 by fault kind")[1].split("\n## ")[0]
+    lines = [line for line in table.splitlines() if line.startswith("| ")]
+    assert lines[0] == "| Fault kind | dae | msvdd |"
+    for line, kind in zip(lines[1:], ("bearing", "out_of_round"), strict=True):
+        cells = {m: run.methods[m].auc[severity_key("0.75-1.00", kind)] for m in ("dae", "msvdd")}
+        best = max(iv.value for iv in cells.values())
+        shown = [
+            f"**{format_interval(iv)}**" if iv.value == best else format_interval(iv) for iv in cells.values()
+        ]
+        assert line == f"| {kind} | " + " | ".join(shown) + " |"
+        assert line.count("**") == 2
+    assert len(lines) == 3
+    without = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50))
+    assert "at severity" not in without
+
+
 def _run_of(shifts: dict[str, float]) -> tuple[dict[str, list[MethodMetrics]], RunIntervals]:
     """Per-method metrics and intervals of methods whose anomalous windows are shifted by `shifts`."""
     rows = _rows()

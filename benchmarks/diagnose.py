@@ -31,6 +31,7 @@ from sklearn.metrics import roc_auc_score
 from benchmarks import methods
 from benchmarks.dataset import WindowRow, load_window_rows, open_dataset
 from benchmarks.errors import OutputExistsError, UserError
+from benchmarks.uncertainty import Interval, auc_interval, format_interval
 from msvdd.contract import Windows
 from msvdd.model import MSVDD, StatsFit
 from msvdd.training import TrainResult
@@ -225,6 +226,9 @@ class Diagnosis:
     """Spread of z."""
     terms: list[GroupTerms]
     """Score decomposition per test kind and anomaly sub-kind."""
+    d_alone: dict[str, Interval]
+    """`collision`, `mechanical`, `all anomalies` -> AUC of D alone against the normal test windows read, with
+    its episode-cluster bootstrap interval (`benchmarks.uncertainty`), for the groups the windows hold."""
     weights: list[WeightAUC]
     """AUCs for each w of `WEIGHT_GRID` (empty without reconstruction): the choice of w, on a dev set."""
     encoding: Encoding
@@ -431,6 +435,23 @@ def decompose(
     return out
 
 
+def d_alone_intervals(d: np.ndarray, kinds: Sequence[str], episodes: Sequence[str]) -> dict[str, Interval]:
+    """AUC of D alone with its episode-cluster interval, collisions, faults and all anomalies each against
+    every normal window, for the groups present."""
+    kind_arr, episode_arr = np.asarray(kinds, dtype=str), np.asarray(episodes, dtype=str)
+    normal = kind_arr == "normal"
+    groups = {
+        "collision": kind_arr == "collision",
+        "mechanical": kind_arr == "mechanical",
+        "all anomalies": ~normal,
+    }
+    return {
+        name: auc_interval(d[normal | mask], mask[normal | mask], episode_arr[normal | mask])
+        for name, mask in groups.items()
+        if np.any(mask) and np.any(normal)
+    }
+
+
 def weight_sweep(d: np.ndarray, rec: np.ndarray, ratio: float, kinds: Sequence[str]) -> list[WeightAUC]:
     """AUCs of D + w ratio Rec for every w of `WEIGHT_GRID`; `ratio` = mean_D / mean_Rec of training."""
     kind_arr = np.asarray(kinds, dtype=str)
@@ -560,6 +581,7 @@ def diagnose(
         second_term=second_term(model),
         embeddings=embeddings,
         terms=decompose(d, wrec, kinds, sub_kinds, has_rec=model.has_term),
+        d_alone=d_alone_intervals(d, kinds, [r.episode for r in rows]),
         weights=(
             weight_sweep(d, wrec / rec_weight(model), model.mean_d_ / model.mean_rec_, kinds)
             if model.has_term and rec_weight(model) > 0
@@ -726,9 +748,9 @@ def _decomposition_lines(d: Diagnosis) -> list[str]:
     """Section 4: the D and Rec terms of the score per group, and the score with other weights w."""
     by_group = {t.group: t for t in d.terms}
     alone = ", ".join(
-        f"{label} {_f(by_group[g].auc_d, 3)}"
+        f"{label} {format_interval(d.d_alone[g], percent=False, digits=3)}"
         for g, label in (("collision", "collisions"), ("mechanical", "faults"), ("all anomalies", "all"))
-        if g in by_group
+        if g in d.d_alone
     )
     normal = by_group.get("normal")
     rec_is = {
@@ -740,8 +762,8 @@ def _decomposition_lines(d: Diagnosis) -> list[str]:
         "",
         f"score = D + {_f(d.rec_weight)} Rec (w mean_D / mean_Rec), Rec "
         f"{rec_is.get(d.second_term, 'absent')}. AUCs are each group against the normal test windows.",
-        f"D alone: AUC {alone}; D's share of the mean score on normal test windows: "
-        f"{_pct(normal.share_d) if normal is not None else '—'}.",
+        f"D alone: AUC {alone} (95 % episode-cluster intervals); D's share of the mean score on normal test "
+        f"windows: {_pct(normal.share_d) if normal is not None else '—'}.",
         "",
         "| group | n | mean D | mean w·Rec | D share | Rec share | AUC D | AUC Rec | AUC score |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|",

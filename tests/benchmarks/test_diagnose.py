@@ -14,6 +14,7 @@ from sklearn.metrics import roc_auc_score
 from benchmarks.cli import main
 from benchmarks.dataset import load_window_rows, open_dataset
 from benchmarks.diagnose import (
+    d_alone_intervals,
     decompose,
     effective_rank,
     explained_variance,
@@ -101,6 +102,22 @@ def test_history_summary_and_the_collapse_rule() -> None:
     assert kept_early is not None and not kept_early.collapsed
 
 
+def test_d_alone_has_the_plain_auc_and_an_episode_cluster_interval_per_group() -> None:
+    """Each group's value is scikit-learn's AUC of D against every normal window; its interval is the
+    episode-cluster bootstrap's (episodes of three windows; a group a dataset lacks is left out)."""
+    from sklearn.metrics import roc_auc_score
+
+    rng = np.random.default_rng(5)
+    kinds = ["normal"] * 12 + ["collision"] * 9
+    episodes = [f"n{i // 3}" for i in range(12)] + [f"c{i // 3}" for i in range(9)]
+    d = np.r_[rng.normal(size=12), 1.0 + rng.normal(size=9)]
+    out = d_alone_intervals(d, kinds, episodes)
+    assert set(out) == {"collision", "all anomalies"}
+    expected = roc_auc_score([k != "normal" for k in kinds], d)
+    for iv in out.values():
+        assert iv.value == pytest.approx(expected, abs=1e-12) and iv.low < iv.value < iv.high
+
+
 def test_decompose_says_which_term_detects_what() -> None:
     kinds = ["normal"] * 4 + ["collision"] * 2 + ["mechanical"] * 2
     subs = ["none"] * 4 + ["wall", "wall", "bearing", "bearing"]
@@ -156,10 +173,17 @@ def test_cli_writes_both_files_and_reruns_the_same(
     assert "## 4. Score decomposition" in md and "## 1. Training history" in md
     assert "the radius R is not trained" in md  # `msvdd` holds mu and Sigma fixed between estimates
     # D alone and its share of the score, and the estimates held during training with their ranks.
-    assert "D alone: AUC" in md and "D's share of the mean score on normal test windows" in md
+    assert (
+        "D alone: AUC" in md
+        and "episode-cluster intervals" in md
+        and "D's share of the mean score on normal test windows" in md
+    )
     assert "| after epoch | effective rank |" in md and "| final |" in md
     first = json.loads((out / "diagnosis.json").read_text())
     assert first["method"] == "msvdd" and first["history"] is not None
+    alone = first["d_alone"]
+    assert set(alone) == {"collision", "mechanical", "all anomalies"}
+    assert all(0.0 <= a["low"] <= a["value"] <= a["high"] <= 1.0 for a in alone.values())
     assert first["second_term"] == "reconstruction" and first["config"]["svdd_fit"] == "frozen"
     s = first["config"]["s"]
     assert [h["epoch"] for h in first["held"]] == [1, -1]  # smoke: 5 epochs, warm-up 1, every 5; final

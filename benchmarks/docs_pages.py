@@ -164,6 +164,12 @@ def results_page(
     return "\n".join(out).rstrip("\n") + "\n"
 
 
+def subcommand(command: str) -> str:
+    """The program and subcommand of a command line (`msvdd-bench run`): what the README names, without the
+    paths of one machine's folders, which docs/results.md gives with the whole command."""
+    return " ".join(command.split()[:2]) or "not recorded"
+
+
 def headline_block(run: RunResults) -> str:
     """The README's headline table: the comparison, reference and naive methods' AUCs with their intervals
     and paired differences, the ranking note as its first line and the naive verdict under it."""
@@ -175,8 +181,8 @@ def headline_block(run: RunResults) -> str:
         [
             GENERATED_NOTE,
             f"Preset `{run.info.preset}`, dataset seed {run.info.dataset_seed}, {trained} per method, "
-            f"written by `{run.info.command}`; code version, machine, dataset fingerprints and every "
-            "table: [docs/results.md](docs/results.md).",
+            f"written by `{subcommand(run.info.command)}`; its whole command, code version, machine, dataset "
+            "fingerprints and every table: [docs/results.md](docs/results.md).",
             "",
             ranking_note(run.intervals),
             "",

@@ -755,8 +755,8 @@ def _top_severity_by_kind_table(
     if not kinds:
         return []
     lines = [
-        f"{h} Fault AUC (%) at severity {top} by fault kind (every method of the tables above; the highest"
-        " point estimate of a row in bold, which is not a ranking where the intervals overlap)",
+        f"{h} Fault AUC (%) at severity {top} by fault kind (comparison, reference and naive methods; the"
+        " highest point estimate of a row in bold, which is not a ranking where the intervals overlap)",
         "",
         "| Fault kind | " + " | ".join(names) + " |",
         "|---|" + "---|" * len(names),

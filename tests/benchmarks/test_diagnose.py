@@ -105,8 +105,6 @@ def test_history_summary_and_the_collapse_rule() -> None:
 def test_d_alone_has_the_plain_auc_and_an_episode_cluster_interval_per_group() -> None:
     """Each group's value is scikit-learn's AUC of D against every normal window; its interval is the
     episode-cluster bootstrap's (episodes of three windows; a group a dataset lacks is left out)."""
-    from sklearn.metrics import roc_auc_score
-
     rng = np.random.default_rng(5)
     kinds = ["normal"] * 12 + ["collision"] * 9
     episodes = [f"n{i // 3}" for i in range(12)] + [f"c{i // 3}" for i in range(9)]

@@ -678,6 +678,23 @@ def _sub_kind_table(
     return lines
 
 
+def _severity_columns(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals
+) -> tuple[list[str], list[str]]:
+    """The comparison, reference and naive methods with intervals, and the severity bins that hold fault
+    windows for any of them."""
+    names = [n for n in _breakdown_methods(per_method) if n in intervals.methods]
+    labels = [
+        b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)
+    ]
+    return names, labels
+
+
+def _method_columns_head(title: str, first: str, names: Sequence[str]) -> list[str]:
+    """A table's heading, blank line, header row (`first`, then one column per method) and separator."""
+    return [title, "", f"| {first} | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+
+
 def _severity_table(
     per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, h: str = "##"
 ) -> list[str]:
@@ -685,20 +702,15 @@ def _severity_table(
     naive methods; nothing when the run has no severities (a dataset of recordings) or no intervals."""
     if intervals is None:
         return []
-    names = _breakdown_methods(per_method)
-    names = [n for n in names if n in intervals.methods]
-    labels = [
-        b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)
-    ]
+    names, labels = _severity_columns(per_method, intervals)
     if not labels:
         return []
-    lines = [
+    lines = _method_columns_head(
         f"{h} Fault AUC (%) by fault severity (normal windows against the fault windows of episodes whose"
         " fault severity is in the bin; every method's per fault kind in results.json)",
-        "",
-        "| Severity | " + " | ".join(names) + " |",
-        "|---|" + "---|" * len(names),
-    ]
+        "Severity",
+        names,
+    )
     for label in labels:
         cells = [_auc_cell(intervals, n, severity_key(label)) or "n/a" for n in names]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
@@ -737,10 +749,7 @@ def _top_severity_by_kind_table(
     severities or intervals."""
     if intervals is None:
         return []
-    names = [n for n in _breakdown_methods(per_method) if n in intervals.methods]
-    held = [
-        b for b, _, _ in severity_bins() if any(severity_key(b) in intervals.methods[n].auc for n in names)
-    ]
+    names, held = _severity_columns(per_method, intervals)
     if not held:
         return []
     top = held[-1]
@@ -754,13 +763,12 @@ def _top_severity_by_kind_table(
     )
     if not kinds:
         return []
-    lines = [
+    lines = _method_columns_head(
         f"{h} Fault AUC (%) at severity {top} by fault kind (comparison, reference and naive methods; the"
         " highest point estimate of a row in bold, which is not a ranking where the intervals overlap)",
-        "",
-        "| Fault kind | " + " | ".join(names) + " |",
-        "|---|" + "---|" * len(names),
-    ]
+        "Fault kind",
+        names,
+    )
     for kind in kinds:
         found = {n: intervals.methods[n].auc.get(severity_key(top, kind)) for n in names}
         values = [iv.value for iv in found.values() if iv is not None and not math.isnan(iv.value)]

@@ -770,15 +770,12 @@ def _top_severity_by_kind_table(
         names,
     )
     for kind in kinds:
-        found = {n: intervals.methods[n].auc.get(severity_key(top, kind)) for n in names}
-        values = [iv.value for iv in found.values() if iv is not None and not math.isnan(iv.value)]
-        best = max(values) if values else math.nan
-        cells = []
-        for n in names:
-            iv = found[n]
-            cell = "n/a" if iv is None else format_interval(iv)
-            cells.append(f"**{cell}**" if iv is not None and iv.value == best else cell)
-        lines.append(f"| {kind} | " + " | ".join(cells) + " |")
+        key = severity_key(top, kind)
+        values = {n: iv.value for n in names if (iv := intervals.methods[n].auc.get(key)) is not None}
+        best = max((v for v in values.values() if math.isfinite(v)), default=math.nan)
+        cells = [_auc_cell(intervals, n, key) or "n/a" for n in names]
+        bold = [f"**{c}**" if values.get(n) == best else c for n, c in zip(names, cells, strict=True)]
+        lines.append(f"| {kind} | " + " | ".join(bold) + " |")
     return [*lines, ""]
 
 

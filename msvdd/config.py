@@ -39,6 +39,10 @@ class MSVDDConfig:
     standard deviation and max over the tokens side by side, so that level, rhythm and peak stay apart) or
     "modulation" (mean, max and the standard deviation split into octave bands of modulation frequency, so
     that a rhythm's rate stays apart too; `msvdd.network.modulation_bands`)."""
+    order_view: bool = False
+    """Also pool each token sequence in the wheels' angle domain (`msvdd.network.order_amplitudes`: the
+    tokens' lines at 1-4 cycles per wheel revolution, from the windows' wheel odometry, which the model then
+    needs); False: the tokens in time only."""
     audio_frontend: str = "waveform"
     """Audio input: "waveform" (paper: raw-waveform CRNN) or "logmel" (spectrogram 2-D CNN); see frontend."""
     imu_input: str = "z"

@@ -77,6 +77,9 @@ history; 3: the frame densities of the reconstruction term; 4: the frame-density
 z-velocity), 2 and 3, refuses any other, and refuses a model of a retired `rec_score` by its config."""
 _FORMAT_NAME = "msvdd-model"
 _INFER_BATCH = 256
+Inputs = tuple[torch.Tensor, ...]
+"""The network's inputs of a batch of windows: normalised audio and IMU, and with `order_view` the wheels'
+odometry (`MSVDD._tensors`)."""
 AUDIO_SAMPLES_PER_TOKEN = math.prod(AUDIO_STRIDES)
 """Waveform samples per audio token (180): the length of a waveform frame of the input."""
 
@@ -162,7 +165,7 @@ class MSVDD(Detector):
         self._terms: list[tuple[float, float, float]] = []
         self._held: tuple[torch.Tensor, torch.Tensor] | None = None
         self._epochs_done = 0
-        self._train_t: tuple[torch.Tensor, torch.Tensor] | None = None
+        self._train_t: Inputs | None = None
 
     @property
     def has_term(self) -> bool:
@@ -206,9 +209,10 @@ class MSVDD(Detector):
             tr, va = split_train_val(len(train), cfg.val_fraction, cfg.seed)
             fit_part, val = train.subset(tr), train.subset(va)
         self._check_sizes(len(fit_part), 0 if val is None else len(val))
-        self.normalizer, train_t = InputNormalizer.fit_tensors(
+        self.normalizer, inputs = InputNormalizer.fit_tensors(
             fit_part, cfg.audio_frontend, cfg.imu_input, cfg.smooth_window, cfg.smooth_polyorder
         )
+        train_t: Inputs = (*inputs, *self._odometry(fit_part))
         val_t = None if val is None or len(val) == 0 else self._tensors(val)
         self._mcd_calls = 0
         self._terms = []
@@ -250,12 +254,29 @@ class MSVDD(Detector):
             except MCDError as err:
                 raise WindowError(f"too few windows for the MCD in s={cfg.s} dimensions: {err}") from err
 
-    def _tensors(self, batch: Windows) -> tuple[torch.Tensor, torch.Tensor]:
+    def _tensors(self, batch: Windows) -> Inputs:
+        """The network's inputs of a batch: normalised (audio, imu), and with `order_view` the odometry."""
         if self.normalizer is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
-        return self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
+        inputs = self.normalizer.tensors(batch, self.config.smooth_window, self.config.smooth_polyorder)
+        return (*inputs, *self._odometry(batch))
 
-    def _init_center(self, train_t: tuple[torch.Tensor, torch.Tensor]) -> None:
+    def _odometry(self, batch: Windows) -> tuple[torch.Tensor, ...]:
+        """With `order_view`, (the wheels' angles (N, 400, W) float32,); else ().
+
+        Raises:
+            WindowError: `order_view` and the windows carry no odometry.
+        """
+        if not self.config.order_view:
+            return ()
+        if batch.odometry is None:
+            raise WindowError(
+                "odometry is None: this M-SVDD has order_view=True and reads the wheels' encoder angles "
+                "(Windows.odometry, (N, 400, W) rad)"
+            )
+        return (torch.from_numpy(np.ascontiguousarray(batch.odometry, dtype=np.float32)),)
+
+    def _init_center(self, train_t: Inputs) -> None:
         """Euclidean mode: c = mean initial embedding, entries near 0 pushed to +-eps (Ruff et al.)."""
         self._set_center(self._embed_tensors(train_t).mean(dim=0))
 
@@ -348,10 +369,10 @@ class MSVDD(Detector):
 
     def batch_loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
         """Training loss of one (audio, imu) batch (the `loss_fn` given to `train_network`)."""
-        audio, imu = batch
+        audio, imu, *odometry = batch
         self._mcd_calls += 1
         seed = self.config.seed * 1_000_003 + self._mcd_calls
-        terms = self.loss_terms(self.module.net(audio, imu), audio, imu, seed)
+        terms = self.loss_terms(self.module.net(audio, imu, *odometry), audio, imu, seed)
         self._terms.append((float(terms.svdd.detach()), float(terms.rec.detach()), float(terms.reg.detach())))
         return terms.total
 
@@ -383,15 +404,15 @@ class MSVDD(Detector):
         seed = self.config.seed
 
         def fixed(m: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
-            audio, imu = batch
-            return self.loss_terms(self.module.net(audio, imu), audio, imu, seed).total
+            audio, imu, *odometry = batch
+            return self.loss_terms(self.module.net(audio, imu, *odometry), audio, imu, seed).total
 
         return batched_loss(fixed, self.config.batch_size, self.device)(module, tensors)
 
     def _finalise(
         self,
-        train_t: tuple[torch.Tensor, torch.Tensor],
-        val_t: tuple[torch.Tensor, torch.Tensor] | None = None,
+        train_t: Inputs,
+        val_t: Inputs | None = None,
     ) -> None:
         """mu, Sigma over the whole training split; the frame densities (`frame_density`: their epochs chosen
         on `val_t`); the training means of D and of the second term."""
@@ -427,11 +448,11 @@ class MSVDD(Detector):
 
     # ---------------------------------------------------------------- scoring
 
-    def _embed_tensors(self, tensors: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
+    def _embed_tensors(self, tensors: Inputs) -> torch.Tensor:
         outs = []
         with torch.inference_mode():
-            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
-                outs.append(self.module.net(a.to(self.device), i.to(self.device)).z)
+            for part in _batches(tensors):
+                outs.append(self.module.net(*(t.to(self.device) for t in part)).z)
         return torch.cat(outs)
 
     def _rec_pairs(
@@ -479,9 +500,7 @@ class MSVDD(Detector):
             frames.append(cut_frames(imu, 1, IMU_FRAME))
         return frames
 
-    def _fit_input_densities(
-        self, train_t: tuple[torch.Tensor, torch.Tensor], val_t: tuple[torch.Tensor, torch.Tensor] | None
-    ) -> list[ContextNet]:
+    def _fit_input_densities(self, train_t: Inputs, val_t: Inputs | None) -> list[ContextNet]:
         """`frame_density`: a `ContextNet` of each used modality's input frames given its neighbours; the
         IMU's also given the audio frames around it when both modalities are used (`msvdd.context_net`)."""
         device = self.device
@@ -497,17 +516,15 @@ class MSVDD(Detector):
             densities.append(fit_context_net(frames, v, seed, cross=cross))
         return densities
 
-    def _distance_and_parts(
-        self, tensors: tuple[torch.Tensor, torch.Tensor]
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def _distance_and_parts(self, tensors: Inputs) -> tuple[np.ndarray, np.ndarray]:
         """(D (N,), the second term per modality (N, M); M = 0 without one)."""
         if self.mu_ is None or self.sigma_ is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load()")
         d_all, parts_all = [], []
         with torch.inference_mode():
-            for a, i in zip(tensors[0].split(_INFER_BATCH), tensors[1].split(_INFER_BATCH), strict=True):
-                a, i = a.to(self.device), i.to(self.device)
-                out = self.module.net(a, i)
+            for part in _batches(tensors):
+                a, i, *odometry = (t.to(self.device) for t in part)
+                out = self.module.net(a, i, *odometry)
                 d_all.append(mahalanobis(out.z.to(torch.float64), self.mu_, self.sigma_).cpu())
                 parts = self.term_parts(out, a, i) if self.has_term else []
                 parts_all.append(
@@ -521,9 +538,7 @@ class MSVDD(Detector):
         """The second term: the modalities' parts (in units of `rec_scale_`) summed; 0 without."""
         return (parts / self.rec_scale_[: parts.shape[1]]).sum(axis=1)
 
-    def _components_tensors(
-        self, tensors: tuple[torch.Tensor, torch.Tensor]
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def _components_tensors(self, tensors: Inputs) -> tuple[np.ndarray, np.ndarray]:
         d, parts = self._distance_and_parts(tensors)
         return d, self._rec(parts)
 
@@ -639,6 +654,11 @@ class MSVDD(Detector):
     def radius_(self) -> float:
         """The learned soft-boundary radius R."""
         return float(self.module.radius.detach())
+
+
+def _batches(tensors: Inputs) -> list[tuple[torch.Tensor, ...]]:
+    """The network's inputs cut into inference batches of `_INFER_BATCH` windows."""
+    return list(zip(*(t.split(_INFER_BATCH) for t in tensors), strict=True))
 
 
 def _stats_fit(epoch: int, raw: torch.Tensor, floor: float) -> StatsFit:

@@ -14,6 +14,10 @@ Shapes (defaults, d = 32, s = 32):
   pooling, mean, std and max side by side; or modulation pooling, the std split into octave bands of
   modulation frequency), summed and projected to s. The ablation variants concatenate,
   add or multiply the pooled encoder features.
+- With `order_view`, every pooled sequence also carries its order amplitudes (`order_amplitudes`): each
+  token feature's once-, twice-, ... per-revolution line in each wheel's angle from the encoders (the
+  odometry, resampled to the token times by `token_angles`), the largest over the wheels: an order-domain
+  view in which a defect that repeats once per revolution stands out at any speed.
 - `AudioDecoder` (six transposed convolutions), `LogMelDecoder` (a per-frame MLP) and `ImuDecoder` (LSTM
   layers) reconstruct the inputs from the encoders' token sequences.
 """
@@ -25,11 +29,19 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
 import torch
 from torch import nn
 
-from msvdd.contract import AUDIO_LEN, IMU_LEN
-from msvdd.frontend import IMU_ALL_CHANNELS, LOGMEL_N_MELS, check_frontend
+from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE
+from msvdd.frontend import (
+    IMU_ALL_CHANNELS,
+    LOGMEL_FRAMES,
+    LOGMEL_HOP,
+    LOGMEL_N_FFT,
+    LOGMEL_N_MELS,
+    check_frontend,
+)
 
 FUSIONS = ("cross_attention", "concat", "sum", "product")
 """Fusion variants: the paper's cross-attention and the three ablation alternatives."""
@@ -40,6 +52,11 @@ MODULATION_EDGES = (1, 2, 4, 8, 16)
 window: k / 2 Hz for a 2 s window); the last band reaches the tokens' Nyquist bin. Bin 1 alone is half a
 hertz, a once-per-revolution defect at a slow 0.5 rev/s; its rhythm at 1 rev/s and its harmonics land in
 the next bands."""
+
+ORDERS = (1, 2, 3, 4)
+"""Orders of wheel revolution (cycles per revolution) whose amplitudes `order_amplitudes` reads: a flat spot,
+a corner's rise and a loose hub's wobble repeat once per revolution, an oval wheel twice, and a strike's
+harmonics fill the next orders; at 2 rev/s order 4 is 8 Hz, under the tokens' Nyquist rate (12-17 Hz)."""
 
 AUDIO_STRIDES = (5, 3, 3, 2, 2, 1)
 """Stride of each of the six audio convolutions; their product (180) is the audio samples per token."""
@@ -76,6 +93,8 @@ class NetConfig(Protocol):
     def audio_frontend(self) -> str: ...
     @property
     def imu_input(self) -> str: ...
+    @property
+    def order_view(self) -> bool: ...
 
 
 def _conv_padding(stride: int) -> tuple[int, int]:
@@ -109,22 +128,79 @@ def modulation_bands(tokens: torch.Tensor) -> torch.Tensor:
     )
 
 
-def pool(tokens: torch.Tensor, kind: str = "mean+max") -> torch.Tensor:
+def token_times(modality: str, audio_frontend: str = "logmel") -> np.ndarray:
+    """(T,) the centre of each token of `modality` ("audio" or "imu") in a window, in seconds from its first
+    sample: a log-mel frame's (`LOGMEL_N_FFT` samples every `LOGMEL_HOP`), a waveform token's (180 samples)
+    or an IMU token's (`IMU_FRAME` samples)."""
+    if modality == "imu":
+        return (np.arange(IMU_TOKENS) * IMU_FRAME + (IMU_FRAME - 1) / 2) / IMU_RATE
+    if audio_frontend == "logmel":
+        return (np.arange(LOGMEL_FRAMES) * LOGMEL_HOP + (LOGMEL_N_FFT - 1) / 2) / AUDIO_RATE
+    step = math.prod(AUDIO_STRIDES)
+    return (np.arange(AUDIO_TOKENS) * step + (step - 1) / 2) / AUDIO_RATE
+
+
+def interpolation_matrix(times: np.ndarray, rate: float = IMU_RATE, length: int = IMU_LEN) -> np.ndarray:
+    """(T, length) float32 weights that read a signal sampled at `rate` (`length` samples from time 0) at
+    `times` by linear interpolation (clamped to the first and last sample)."""
+    pos = np.clip(np.asarray(times, dtype=np.float64) * rate, 0.0, length - 1.0)
+    lo = np.minimum(np.floor(pos).astype(np.int64), length - 2)
+    frac = pos - lo
+    out = np.zeros((len(pos), length), dtype=np.float64)
+    rows = np.arange(len(pos))
+    out[rows, lo] = 1.0 - frac
+    out[rows, lo + 1] = frac
+    return out.astype(np.float32)
+
+
+def token_angles(odometry: torch.Tensor, matrix: torch.Tensor) -> torch.Tensor:
+    """Wheel angles (N, 400, W) at 200 Hz -> (N, T, W) at the token times `matrix` (`interpolation_matrix`)
+    reads; angles unwrapped by the encoders, so that linear interpolation is exact for a steady wheel."""
+    return torch.einsum("tl,nlw->ntw", matrix, odometry)
+
+
+def order_amplitudes(tokens: torch.Tensor, angles: torch.Tensor) -> torch.Tensor:
+    """(N, T, d) tokens, (N, T, W) each wheel's angle at the tokens (rad) -> (N, len(`ORDERS`), d): for each
+    order k, the amplitude of each feature's line at k cycles per revolution of a wheel (twice the modulus
+    of the mean of its deviation from its mean times exp(-i k angle): a feature that swings as A cos(k angle
+    + phase) over whole revolutions of a steadily turning wheel reads A; over part of a revolution, or a
+    changing speed, about A), the largest over the wheels. The order domain: a defect that repeats once
+    per revolution of its wheel is one line at any speed, where in time it moves with the speed; a wheel
+    that does not turn reads about 0."""
+    centred = tokens - tokens.mean(dim=1, keepdim=True)
+    t = tokens.shape[1]
+    out = []
+    for k in ORDERS:
+        phase = k * angles  # (N, T, W)
+        re = torch.einsum("ntw,ntd->nwd", torch.cos(phase), centred)
+        im = torch.einsum("ntw,ntd->nwd", torch.sin(phase), centred)
+        amplitude = (2.0 / t) * torch.sqrt(re**2 + im**2 + 1e-12)
+        out.append(amplitude.amax(dim=1))
+    return torch.stack(out, dim=1)
+
+
+def pool(tokens: torch.Tensor, kind: str = "mean+max", angles: torch.Tensor | None = None) -> torch.Tensor:
     """(N, T, d) -> (N, d) mean + max over the tokens (the max keeps short transients such as impacts); or,
     `kind` "stats", (N, 3 d) their mean, standard deviation and max side by side (statistics pooling); or,
     `kind` "modulation", (N, (2 + len(`MODULATION_EDGES`)) d) their mean, max and the standard deviation
-    split into octave bands of modulation frequency (`modulation_bands`)."""
+    split into octave bands of modulation frequency (`modulation_bands`). With the wheels' `angles` at the
+    tokens (N, T, W) (the order view), their `order_amplitudes` follow, len(`ORDERS`) d more."""
     if kind == "stats":
-        return torch.cat([tokens.mean(dim=1), tokens.std(dim=1), tokens.amax(dim=1)], dim=1)
-    if kind == "modulation":
+        pooled = torch.cat([tokens.mean(dim=1), tokens.std(dim=1), tokens.amax(dim=1)], dim=1)
+    elif kind == "modulation":
         bands = modulation_bands(tokens).flatten(1)
-        return torch.cat([tokens.mean(dim=1), tokens.amax(dim=1), bands], dim=1)
-    return tokens.mean(dim=1) + tokens.amax(dim=1)
+        pooled = torch.cat([tokens.mean(dim=1), tokens.amax(dim=1), bands], dim=1)
+    else:
+        pooled = tokens.mean(dim=1) + tokens.amax(dim=1)
+    if angles is None:
+        return pooled
+    return torch.cat([pooled, order_amplitudes(tokens, angles).flatten(1)], dim=1)
 
 
-def pooled_width(d: int, kind: str) -> int:
-    """Width of `pool`'s output for d-wide tokens."""
-    return {"stats": 3 * d, "modulation": (2 + len(MODULATION_EDGES)) * d}.get(kind, d)
+def pooled_width(d: int, kind: str, order_view: bool = False) -> int:
+    """Width of `pool`'s output for d-wide tokens (with the order view's amplitudes if `order_view`)."""
+    base = {"stats": 3 * d, "modulation": (2 + len(MODULATION_EDGES)) * d}.get(kind, d)
+    return base + (len(ORDERS) * d if order_view else 0)
 
 
 class AudioEncoder(nn.Module):
@@ -277,7 +353,8 @@ class FusionOutput:
 class Fusion(nn.Module):
     """Fuses audio and IMU token sequences into z (N, s): cross-attention, concat, sum or product.
 
-    With only one modality present, the pooled tokens of that modality are projected to s.
+    With only one modality present, the pooled tokens of that modality are projected to s. With
+    `order_view`, each sequence is pooled with the wheels' angles at its tokens (`pool`).
     """
 
     def __init__(
@@ -288,6 +365,7 @@ class Fusion(nn.Module):
         use_audio: bool = True,
         use_imu: bool = True,
         pooling: str = "mean+max",
+        order_view: bool = False,
     ) -> None:
         super().__init__()
         if kind not in FUSIONS:
@@ -298,27 +376,40 @@ class Fusion(nn.Module):
             raise ValueError("use_audio and use_imu are both False; at least one modality is needed")
         self.kind = kind
         self.pooling = pooling
+        self.order_view = order_view
         self.both = use_audio and use_imu
         self.audio_queries_imu: CrossAttentionBlock | None = None
         self.imu_queries_audio: CrossAttentionBlock | None = None
         if self.both and kind == "cross_attention":
             self.audio_queries_imu = CrossAttentionBlock(d)
             self.imu_queries_audio = CrossAttentionBlock(d)
-        width = pooled_width(d, pooling)
+        width = pooled_width(d, pooling, order_view)
         self.project = nn.Linear(2 * width if (self.both and kind == "concat") else width, s)
 
-    def forward(self, audio_tokens: torch.Tensor | None, imu_tokens: torch.Tensor | None) -> FusionOutput:
-        """Token sequences (N, T, d) (None for an absent modality) -> `FusionOutput`."""
+    def forward(
+        self,
+        audio_tokens: torch.Tensor | None,
+        imu_tokens: torch.Tensor | None,
+        audio_angles: torch.Tensor | None = None,
+        imu_angles: torch.Tensor | None = None,
+    ) -> FusionOutput:
+        """Token sequences (N, T, d) (None for an absent modality) and, with `order_view`, the wheels'
+        angles at their tokens (N, T, W) -> `FusionOutput`."""
+        missing_a = audio_tokens is not None and audio_angles is None
+        missing_i = imu_tokens is not None and imu_angles is None
+        if self.order_view and (missing_a or missing_i):
+            raise ValueError("order_view: the wheels' angles at the tokens are needed")
         if audio_tokens is None or imu_tokens is None:
             tokens = audio_tokens if audio_tokens is not None else imu_tokens
             if tokens is None:
                 raise ValueError("Fusion needs at least one token sequence")
-            return FusionOutput(z=self.project(pool(tokens, self.pooling)), fused_a=None, fused_i=None)
+            angles = audio_angles if audio_tokens is not None else imu_angles
+            return FusionOutput(z=self.project(self.pool(tokens, angles)), fused_a=None, fused_i=None)
         if self.audio_queries_imu is not None and self.imu_queries_audio is not None:
-            z_ia = pool(self.audio_queries_imu(audio_tokens, imu_tokens), self.pooling)
-            z_ai = pool(self.imu_queries_audio(imu_tokens, audio_tokens), self.pooling)
+            z_ia = self.pool(self.audio_queries_imu(audio_tokens, imu_tokens), audio_angles)
+            z_ai = self.pool(self.imu_queries_audio(imu_tokens, audio_tokens), imu_angles)
             return FusionOutput(z=self.project(z_ia + z_ai), fused_a=z_ia, fused_i=z_ai)
-        z_a, z_i = pool(audio_tokens, self.pooling), pool(imu_tokens, self.pooling)
+        z_a, z_i = self.pool(audio_tokens, audio_angles), self.pool(imu_tokens, imu_angles)
         if self.kind == "concat":
             fused = torch.cat([z_a, z_i], dim=1)
         elif self.kind == "sum":
@@ -326,6 +417,10 @@ class Fusion(nn.Module):
         else:
             fused = z_a * z_i
         return FusionOutput(z=self.project(fused), fused_a=None, fused_i=None)
+
+    def pool(self, tokens: torch.Tensor, angles: torch.Tensor | None) -> torch.Tensor:
+        """`pool` with this fusion's kind; the angles only with `order_view`."""
+        return pool(tokens, self.pooling, angles if self.order_view else None)
 
 
 @dataclass
@@ -353,7 +448,8 @@ class NetOutput:
 
 
 class FusionNet(nn.Module):
-    """Encoders, fusion and decoders as switched by the config (use_audio, use_imu, use_reconstruction)."""
+    """Encoders, fusion and decoders as switched by the config (use_audio, use_imu, use_reconstruction,
+    order_view)."""
 
     def __init__(self, config: NetConfig) -> None:
         super().__init__()
@@ -361,6 +457,7 @@ class FusionNet(nn.Module):
         check_frontend(config.audio_frontend, config.imu_input)
         self.use_audio = config.use_audio
         self.use_imu = config.use_imu
+        self.order_view = config.order_view
         logmel = config.audio_frontend == "logmel"
         imu_channels = IMU_ALL_CHANNELS if config.imu_input == "all" else 1
         # Modules are built in this order so that a seed gives the same initial weights as before.
@@ -368,26 +465,47 @@ class FusionNet(nn.Module):
         if config.use_audio:
             self.audio_encoder = LogMelEncoder(d) if logmel else AudioEncoder(d)
         self.imu_encoder = ImuEncoder(d, imu_channels) if config.use_imu else None
-        self.fusion = Fusion(d, s, config.fusion, config.use_audio, config.use_imu, config.pooling)
+        self.fusion = Fusion(
+            d, s, config.fusion, config.use_audio, config.use_imu, config.pooling, config.order_view
+        )
         rec = config.use_reconstruction
         self.audio_decoder: nn.Module | None = None
         if rec and config.use_audio:
             self.audio_decoder = LogMelDecoder(d) if logmel else AudioDecoder(d)
         self.imu_decoder = ImuDecoder(d, imu_channels) if (rec and config.use_imu) else None
+        self.audio_angle_reader: torch.Tensor
+        self.imu_angle_reader: torch.Tensor
+        audio_times = token_times("audio", config.audio_frontend)
+        self.register_buffer(
+            "audio_angle_reader", torch.from_numpy(interpolation_matrix(audio_times)), persistent=False
+        )
+        self.register_buffer(
+            "imu_angle_reader", torch.from_numpy(interpolation_matrix(token_times("imu"))), persistent=False
+        )
 
-    def forward(self, audio: torch.Tensor, imu: torch.Tensor) -> NetOutput:
-        """audio (N, 8820, 2) or log-mel (N, 2, 67, 32), imu (N, 400) or (N, 400, 7), normalised -> output."""
+    def forward(
+        self, audio: torch.Tensor, imu: torch.Tensor, odometry: torch.Tensor | None = None
+    ) -> NetOutput:
+        """audio (N, 8820, 2) or log-mel (N, 2, 67, 32), imu (N, 400) or (N, 400, 7), normalised, and with
+        `order_view` the wheels' encoder angles (N, 400, W) (rad, from the window's first sample) ->
+        output."""
+        if self.order_view and odometry is None:
+            raise ValueError("order_view: the network needs the wheels' odometry (N, 400, W)")
+        a_ang = i_ang = None
+        if self.order_view and odometry is not None:
+            a_ang = token_angles(odometry, self.audio_angle_reader)
+            i_ang = token_angles(odometry, self.imu_angle_reader)
         a_tok = self.audio_encoder(audio) if self.audio_encoder is not None else None
         i_tok = self.imu_encoder(imu) if self.imu_encoder is not None else None
-        fused = self.fusion(a_tok, i_tok)
+        fused = self.fusion(a_tok, i_tok, a_ang, i_ang)
         a_rec = self.audio_decoder(a_tok) if (self.audio_decoder is not None and a_tok is not None) else None
         i_rec = self.imu_decoder(i_tok) if (self.imu_decoder is not None and i_tok is not None) else None
         return NetOutput(
             z=fused.z,
             audio_tokens=a_tok,
             imu_tokens=i_tok,
-            z_a=None if a_tok is None else pool(a_tok, self.fusion.pooling),
-            z_i=None if i_tok is None else pool(i_tok, self.fusion.pooling),
+            z_a=None if a_tok is None else self.fusion.pool(a_tok, a_ang),
+            z_i=None if i_tok is None else self.fusion.pool(i_tok, i_ang),
             fused_a=fused.fused_a,
             fused_i=fused.fused_i,
             audio_rec=a_rec,

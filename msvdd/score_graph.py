@@ -336,6 +336,11 @@ class ScoreGraph(nn.Module):
         norm = model.normalizer
         if norm is None or model.mu_ is None or model.sigma_ is None:
             raise NotFittedError("MSVDD is not fitted: call fit() or MSVDD.load() before exporting")
+        if cfg.order_view:
+            raise ValueError(
+                "order_view=True: the model reads the wheels' odometry, which the score graph's inputs "
+                "(audio, imu, imu6) do not carry; export a model with order_view=False"
+            )
         self.logmel_input = cfg.audio_frontend == "logmel"
         self.imu_all = cfg.imu_input == "all"
         self.has_term = model.has_term

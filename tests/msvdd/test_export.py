@@ -174,6 +174,14 @@ def test_score_graph_reproduces_msvdd_score_for_every_variant(overrides: dict[st
     assert max_relative_difference(got, model.score(batch)) <= RTOL
 
 
+def test_score_graph_refuses_a_model_that_reads_odometry() -> None:
+    train, _ = toy_windows(48, 0, seed=0)
+    cfg = MSVDDConfig.smoke(epochs=1, val_fraction=0.0, svdd_fit="frozen", bias_free=True, order_view=True)
+    model = MSVDD(cfg).fit(train)
+    with pytest.raises(ValueError, match=r"order_view=True.*odometry"):
+        ScoreGraph(model)
+
+
 def test_rewritten_graph_pieces_match_what_they_stand_for() -> None:
     """The 2-D audio encoder, the polyphase decoder, the matrix log-mel, Huber and the block peak: the
     modules and functions of `MSVDD.score` they replace give the same numbers."""

@@ -268,3 +268,29 @@ def test_the_frame_density_term_is_chosen_after_training(toy_train: Windows) -> 
     b = MSVDD(dataclasses.replace(cfg, frame_density=True)).fit(toy_train)
     batch = toy_train.subset(slice(0, 8))
     np.testing.assert_array_equal(a.score_components(batch)[0], b.score_components(batch)[0])
+
+
+def test_order_view_trains_saves_loads_and_needs_odometry(
+    toy_train: Windows, toy_test: tuple[Windows, np.ndarray], tmp_path: Path
+) -> None:
+    cfg = MSVDDConfig.smoke(
+        epochs=2, svdd_fit="frozen", bias_free=True, pooling="stats", order_view=True, stats_every=1
+    )
+    model = MSVDD(cfg).fit(toy_train)
+    scores = model.score(toy_test[0])
+    assert np.all(np.isfinite(scores)) and np.std(scores) > 0
+    model.save(tmp_path / "m.pt")
+    np.testing.assert_array_equal(MSVDD.load(tmp_path / "m.pt").score(toy_test[0]), scores)
+    bare = Windows(audio=toy_test[0].audio, imu=toy_test[0].imu, imu6=toy_test[0].imu6)
+    with pytest.raises(WindowError, match=r"odometry is None.*order_view"):
+        model.score(bare)
+    with pytest.raises(WindowError, match="odometry is None"):
+        MSVDD(cfg).fit(Windows(audio=toy_train.audio, imu=toy_train.imu, imu6=toy_train.imu6))
+    # the score reads the wheels' angles: other angles, other scores
+    spun = Windows(
+        audio=toy_test[0].audio,
+        imu=toy_test[0].imu,
+        imu6=toy_test[0].imu6,
+        odometry=(toy_test[0].odometry * np.float32(1.5)) if toy_test[0].odometry is not None else None,
+    )
+    assert not np.allclose(model.score(spun), scores)

@@ -11,11 +11,16 @@ from msvdd.network import (
     AUDIO_TOKENS,
     IMU_TOKENS,
     MODULATION_EDGES,
+    ORDERS,
     CrossAttentionBlock,
     Fusion,
     FusionNet,
+    interpolation_matrix,
     modulation_bands,
+    order_amplitudes,
     pool,
+    token_angles,
+    token_times,
 )
 
 
@@ -167,3 +172,66 @@ def test_modulation_pooling_splits_the_spread_by_how_fast_a_feature_swings(count
     for fusion in ("cross_attention", "concat"):
         out = FusionNet(MSVDDConfig.smoke(d=8, s=6, fusion=fusion, pooling="modulation"))(*_inputs())
         assert out.z.shape == (3, 6) and out.z_a is not None and out.z_a.shape == (3, 56)
+
+
+def test_order_amplitudes_read_a_line_in_a_wheels_angle() -> None:
+    """Analytic oracle: a feature that swings as A cos(k angle + phase) over whole revolutions of a steadily
+    turning wheel reads A at order k and 0 at the other orders; a constant feature reads 0; a wheel that
+    does not turn reads about 0; the wheel with the line wins."""
+    t = 64
+    angle = torch.linspace(0, 2 * torch.pi * 3, t + 1, dtype=torch.float64)[:-1]  # 3 revolutions
+    angles = torch.stack([angle, torch.zeros(t, dtype=torch.float64)], dim=1)[None]  # wheel 1 stands still
+    tokens = torch.stack(
+        [
+            1.5 * torch.cos(angle + 0.4),  # order 1, amplitude 1.5
+            5.0 + 0.7 * torch.sin(2 * angle),  # order 2, amplitude 0.7, on a level
+            torch.full((t,), 3.0, dtype=torch.float64),  # constant
+        ],
+        dim=1,
+    )[None]
+    amp = order_amplitudes(tokens, angles)[0]  # (orders, d)
+    assert amp.shape == (len(ORDERS), 3)
+    expected = torch.zeros(len(ORDERS), 3, dtype=torch.float64)
+    expected[ORDERS.index(1), 0] = 1.5
+    expected[ORDERS.index(2), 1] = 0.7
+    torch.testing.assert_close(amp, expected, atol=1e-5, rtol=1e-6)
+    # a wheel that does not turn reads (about) nothing, whatever the tokens do
+    still = order_amplitudes(tokens, torch.zeros(1, t, 1, dtype=torch.float64))
+    assert float(still.abs().max()) < 1e-5
+    pooled = pool(tokens, "stats", angles)
+    assert pooled.shape == (1, (3 + len(ORDERS)) * 3)
+    torch.testing.assert_close(pooled[0, 9:], amp.flatten())
+
+
+def test_token_angles_interpolate_the_encoders_at_the_token_centres() -> None:
+    """A wheel turning at a steady rate reads rate x the token's centre time, for the log-mel frames, the
+    waveform tokens and the IMU tokens."""
+    rate = 7.3  # rad/s
+    odometry = (rate * torch.arange(400, dtype=torch.float64) / 200.0)[None, :, None].repeat(2, 1, 3)
+    for modality, frontend, count in (
+        ("audio", "logmel", LOGMEL_FRAMES),
+        ("audio", "waveform", AUDIO_TOKENS),
+        ("imu", "logmel", IMU_TOKENS),
+    ):
+        times = token_times(modality, frontend)
+        assert times.shape == (count,) and 0 < times[0] < times[-1] < 2.0
+        matrix = torch.from_numpy(interpolation_matrix(times)).to(torch.float64)
+        got = token_angles(odometry, matrix)
+        assert got.shape == (2, count, 3)
+        torch.testing.assert_close(got[0, :, 0], rate * torch.from_numpy(times), atol=1e-6, rtol=1e-6)
+
+
+def test_order_view_network_needs_odometry_and_widens_the_pooled_features() -> None:
+    torch.manual_seed(0)
+    cfg = MSVDDConfig.smoke(d=8, s=6, pooling="stats", order_view=True)
+    net = FusionNet(cfg).eval()
+    audio, imu = _inputs()
+    odometry = torch.cumsum(torch.rand(3, 400, 4), dim=1) * 0.05
+    out = net(audio, imu, odometry)
+    assert out.z.shape == (3, 6) and out.z_a is not None and out.z_a.shape == (3, (3 + len(ORDERS)) * 8)
+    with pytest.raises(ValueError, match="odometry"):
+        net(audio, imu)
+    # the wheels' angles enter z: another rotation gives another embedding
+    with torch.no_grad():
+        other = net(audio, imu, odometry * 1.7).z
+    assert not torch.allclose(out.z.detach(), other)

@@ -599,6 +599,7 @@ def result_tables(
             "",
             *_difference_table(per_method, intervals),
             "",
+            *_ablation_fault_table(per_method, intervals, h),
         ]
     return [
         *out,
@@ -738,6 +739,57 @@ def _severity_by_kind_table(intervals: RunIntervals | None, h: str = "##") -> li
     for kind in kinds:
         cells = [_auc_cell(intervals, reference, severity_key(b, kind)) or "n/a" for b in labels]
         lines.append(f"| {kind} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+ABLATION_TABLES: tuple[str, ...] = ("Table II", "Table III", "latent-s figure")
+"""The paper's tables whose rows are ablations of M-SVDD (one switch each)."""
+
+
+def _ablation_fault_table(
+    per_method: Mapping[str, Sequence[MethodMetrics]], intervals: RunIntervals | None, h: str = "##"
+) -> list[str]:
+    """Each ablation's paired fault AUC difference against M-SVDD by fault kind (all faults first) and
+    severity bin (all severities first), a difference whose interval excludes 0 in bold; nothing without
+    ablations, intervals or the reference."""
+    if intervals is None or intervals.reference is None or intervals.reference not in intervals.methods:
+        return []
+    names = list(per_method)
+    ablations = list(
+        dict.fromkeys(
+            m
+            for table in ABLATION_TABLES
+            for m, _ in paper_table(table, names)
+            if m != intervals.reference and m in intervals.methods
+        )
+    )
+    auc = intervals.methods[intervals.reference].auc
+    labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
+    subs = {key.removeprefix("auc_") for key in auc if key.startswith("auc_")} - {"mechanical"}
+    kinds = sorted(k for k in subs if any(severity_key(b, k) in auc for b in labels))
+    if not ablations or not kinds:
+        return []
+
+    def cell(method: str, key: str) -> str:
+        iv = intervals.methods[method].vs_reference.get(key)
+        if iv is None:
+            return "n/a"
+        text = format_interval(iv, signed=True)
+        return f"**{text}**" if excludes_zero(iv) else text
+
+    columns = ["all severities", *labels]
+    lines = [
+        f"{h} Paired fault AUC differences (%) of the ablations against M-SVDD by fault kind and severity"
+        " (an interval that excludes 0 in bold)",
+        "",
+        "| Ablation | Fault kind | " + " | ".join(columns) + " |",
+        "|---|---|" + "---|" * len(columns),
+    ]
+    for method in ablations:
+        for kind in ("mechanical", *kinds):
+            keys = [f"auc_{kind}", *(severity_key(b, kind) for b in labels)]
+            shown = "all faults" if kind == "mechanical" else kind
+            lines.append(f"| `{method}` | {shown} | " + " | ".join(cell(method, k) for k in keys) + " |")
     return [*lines, ""]
 
 

@@ -263,6 +263,41 @@ def test_every_method_gets_its_fault_aucs_by_kind_in_the_top_severity_bin() -> N
     assert "at severity" not in without
 
 
+def test_each_ablation_gets_its_paired_fault_differences_by_kind_and_severity() -> None:
+    """Rows are each ablation's faults (all, then by kind), columns all severities and the bins that hold
+    faults; each cell the paired difference against M-SVDD that the run computed, in bold where its
+    interval excludes 0. A run without ablations has no such table."""
+    from benchmarks.report import severity_key
+    from benchmarks.uncertainty import excludes_zero, format_interval
+
+    rows, severity = _severity_rows()
+    kinds = np.array([r.kind for r in rows])
+    # msvdd-imu-only ignores the faults (shift 0): a large negative difference against M-SVDD's shift 3
+    scores = [_scores(rows, "msvdd", 0, 3.0), _scores(rows, "msvdd-imu-only", 0, 0.0)]
+    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
+    run = auc_intervals(rows, scores, replicates=50, severity=severity)
+    text = markdown(INFO, per_method, run)
+    table = text.split("## Paired fault AUC differences (%) of the ablations")[1].split("\n## ")[0]
+    lines = [line for line in table.splitlines() if line.startswith("| ")]
+    bins = ("0.00-0.25", "0.25-0.50", "0.75-1.00")
+    assert lines[0] == "| Ablation | Fault kind | all severities | " + " | ".join(bins) + " |"
+    diff = run.methods["msvdd-imu-only"].vs_reference
+    for line, kind in zip(lines[1:], ("mechanical", "bearing", "out_of_round"), strict=True):
+        ivs = [diff[f"auc_{kind}"], *(diff[severity_key(b, kind)] for b in bins)]
+        cells = [
+            f"**{format_interval(iv, signed=True)}**"
+            if excludes_zero(iv)
+            else format_interval(iv, signed=True)
+            for iv in ivs
+        ]
+        shown = "all faults" if kind == "mechanical" else kind
+        assert line == f"| `msvdd-imu-only` | {shown} | " + " | ".join(cells) + " |"
+    assert len(lines) == 4 and diff["auc_mechanical"].high < 0 and "**" in lines[1]
+    no_ablation = {"msvdd": per_method["msvdd"]}
+    alone = auc_intervals(rows, scores[:1], replicates=50, severity=severity)
+    assert "of the ablations" not in markdown(INFO, no_ablation, alone)
+
+
 def _run_of(shifts: dict[str, float]) -> tuple[dict[str, list[MethodMetrics]], RunIntervals]:
     """Per-method metrics and intervals of methods whose anomalous windows are shifted by `shifts`."""
     rows = _rows()

@@ -56,12 +56,16 @@ perf: $(STAMP)
 	$(BENCH) perf --stage all --json runs/perf.json
 
 # docs/results.md, the README's headline table and the method list of docs/detectors.md, from the results
-# files there are: `make bench`'s run (with the ablations and the speed figures when present), else `make
-# demo`'s. Every figure of the pages comes from those files (`msvdd-bench docs --help`).
-DOCS_RUNS ?= $(if $(wildcard runs/paper/results.json),runs/paper $(if $(wildcard runs/paper-ablations/results.json),runs/paper-ablations),runs/demo)
+# files there are, in this order: `make bench`'s run (the first gives the README's table), runs on fresh
+# seeds (runs/paper-seed*), the ablation runs (runs/paper-ablations*, runs/paper-fusions*,
+# runs/paper-latent*), `make demo`'s run, and the speed figures when present. Every figure of the pages
+# comes from those files (`msvdd-bench docs --help`).
+DOCS_FOLDERS ?= runs/paper runs/paper-seed* runs/paper-ablations* runs/paper-fusions* runs/paper-latent* runs/demo
+DOCS_RUNS ?= $(foreach f,$(DOCS_FOLDERS),$(sort $(patsubst %/results.json,%,$(wildcard $(f)/results.json))))
 DOCS_PERF ?= $(wildcard runs/perf.json)
+DOCS_SWEEP ?= $(wildcard runs/sweep-severity/sweep.json)
 docs: $(STAMP)
-	$(BENCH) docs $(DOCS_RUNS) $(if $(DOCS_PERF),--perf $(DOCS_PERF))
+	$(BENCH) docs $(DOCS_RUNS) $(if $(DOCS_PERF),--perf $(DOCS_PERF)) $(if $(DOCS_SWEEP),--sweep $(dir $(DOCS_SWEEP)))
 
 # Screenshots of the Rerun web viewer (headless Chromium, software rendering) of a collision and a fault
 # episode of `make demo`'s run, at 1440x900 and 1920x1080, into assets/screenshots/. Needs Chromium

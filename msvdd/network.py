@@ -163,10 +163,10 @@ def order_amplitudes(tokens: torch.Tensor, angles: torch.Tensor) -> torch.Tensor
     """(N, T, d) tokens, (N, T, W) each wheel's angle at the tokens (rad) -> (N, len(`ORDERS`), d): for each
     order k, the amplitude of each feature's line at k cycles per revolution of a wheel (twice the modulus
     of the mean of its deviation from its mean times exp(-i k angle): a feature that swings as A cos(k angle
-    + phase) over whole revolutions of a steadily turning wheel reads A; over part of a revolution, or a
-    changing speed, about A), the largest over the wheels. The order domain: a defect that repeats once
-    per revolution of its wheel is one line at any speed, where in time it moves with the speed; a wheel
-    that does not turn reads about 0."""
+    + phase) over whole revolutions of a steadily turning wheel reads A; over part of a revolution or at a
+    changing speed, part of it leaks into the other orders), the largest over the wheels. The order
+    domain: a defect that repeats once per revolution of its wheel is one line at any speed, where in time
+    it moves with the speed; a wheel that does not turn reads about 0."""
     centred = tokens - tokens.mean(dim=1, keepdim=True)
     t = tokens.shape[1]
     out = []

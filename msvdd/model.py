@@ -368,7 +368,7 @@ class MSVDD(Detector):
         return LossTerms(total=a1 * svdd + a2 * rec, svdd=svdd, rec=rec, reg=zero)
 
     def batch_loss(self, module: nn.Module, batch: tuple[torch.Tensor, ...]) -> torch.Tensor:
-        """Training loss of one (audio, imu) batch (the `loss_fn` given to `train_network`)."""
+        """Training loss of one (audio, imu[, odometry]) batch (the `loss_fn` given to `train_network`)."""
         audio, imu, *odometry = batch
         self._mcd_calls += 1
         seed = self.config.seed * 1_000_003 + self._mcd_calls

@@ -235,20 +235,32 @@ def test_the_reference_gets_a_table_by_fault_kind_and_severity() -> None:
     assert len(lines) == 3
 
 
+def _severity_run(shifts: dict[str, float]) -> tuple[RunIntervals, str, str]:
+    """A run on `_severity_rows` of methods whose anomalous windows are shifted by `shifts`: its intervals,
+    its report, and the report of the same run without severities."""
+    rows, severity = _severity_rows()
+    kinds = np.array([r.kind for r in rows])
+    scores = [_scores(rows, m, 0, shift) for m, shift in shifts.items()]
+    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
+    run = auc_intervals(rows, scores, replicates=50, severity=severity)
+    without = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50))
+    return run, markdown(INFO, per_method, run), without
+
+
+def _table_rows(text: str, heading: str) -> list[str]:
+    """The rows (header first, no separator) of the table under `heading` in a report."""
+    table = text.split(heading)[1].split("\n## ")[0]
+    return [line for line in table.splitlines() if line.startswith("| ")]
+
+
 def test_every_method_gets_its_fault_aucs_by_kind_in_the_top_severity_bin() -> None:
     """Rows are the fault kinds, columns every method of the tables; each cell is that method's AUC of the
     kind in the highest bin holding faults (0.75-1.00 here), the row's largest in bold."""
     from benchmarks.report import severity_key
     from benchmarks.uncertainty import format_interval
 
-    rows, severity = _severity_rows()
-    kinds = np.array([r.kind for r in rows])
-    scores = [_scores(rows, "msvdd", 0, 1.0), _scores(rows, "dae", 0, 0.2)]
-    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
-    run = auc_intervals(rows, scores, replicates=50, severity=severity)
-    text = markdown(INFO, per_method, run)
-    table = text.split("## Fault AUC (%) at severity 0.75-1.00 by fault kind")[1].split("\n## ")[0]
-    lines = [line for line in table.splitlines() if line.startswith("| ")]
+    run, text, without = _severity_run({"msvdd": 1.0, "dae": 0.2})
+    lines = _table_rows(text, "## Fault AUC (%) at severity 0.75-1.00 by fault kind")
     assert lines[0] == "| Fault kind | dae | msvdd |"
     for line, kind in zip(lines[1:], ("bearing", "out_of_round"), strict=True):
         cells = {m: run.methods[m].auc[severity_key("0.75-1.00", kind)] for m in ("dae", "msvdd")}
@@ -259,7 +271,6 @@ def test_every_method_gets_its_fault_aucs_by_kind_in_the_top_severity_bin() -> N
         assert line == f"| {kind} | " + " | ".join(shown) + " |"
         assert line.count("**") == 2
     assert len(lines) == 3
-    without = markdown(INFO, per_method, auc_intervals(rows, scores, replicates=50))
     assert "at severity" not in without
 
 
@@ -270,15 +281,9 @@ def test_each_ablation_gets_its_paired_fault_differences_by_kind_and_severity() 
     from benchmarks.report import severity_key
     from benchmarks.uncertainty import excludes_zero, format_interval
 
-    rows, severity = _severity_rows()
-    kinds = np.array([r.kind for r in rows])
     # msvdd-imu-only ignores the faults (shift 0): a large negative difference against M-SVDD's shift 3
-    scores = [_scores(rows, "msvdd", 0, 3.0), _scores(rows, "msvdd-imu-only", 0, 0.0)]
-    per_method = {s.method: [compute_metrics(s.scores, 0.5, kinds)] for s in scores}
-    run = auc_intervals(rows, scores, replicates=50, severity=severity)
-    text = markdown(INFO, per_method, run)
-    table = text.split("## Paired fault AUC differences (%) of the ablations")[1].split("\n## ")[0]
-    lines = [line for line in table.splitlines() if line.startswith("| ")]
+    run, text, _ = _severity_run({"msvdd": 3.0, "msvdd-imu-only": 0.0})
+    lines = _table_rows(text, "## Paired fault AUC differences (%) of the ablations")
     bins = ("0.00-0.25", "0.25-0.50", "0.75-1.00")
     assert lines[0] == "| Ablation | Fault kind | all severities | " + " | ".join(bins) + " |"
     diff = run.methods["msvdd-imu-only"].vs_reference
@@ -293,9 +298,8 @@ def test_each_ablation_gets_its_paired_fault_differences_by_kind_and_severity() 
         shown = "all faults" if kind == "mechanical" else kind
         assert line == f"| `msvdd-imu-only` | {shown} | " + " | ".join(cells) + " |"
     assert len(lines) == 4 and diff["auc_mechanical"].high < 0 and "**" in lines[1]
-    no_ablation = {"msvdd": per_method["msvdd"]}
-    alone = auc_intervals(rows, scores[:1], replicates=50, severity=severity)
-    assert "of the ablations" not in markdown(INFO, no_ablation, alone)
+    _, alone, _ = _severity_run({"msvdd": 3.0})
+    assert "by fault kind and severity" in alone and "of the ablations" not in alone
 
 
 def _run_of(shifts: dict[str, float]) -> tuple[dict[str, list[MethodMetrics]], RunIntervals]:

@@ -718,6 +718,14 @@ def _severity_table(
     return [*lines, ""]
 
 
+def _fault_bins_and_kinds(auc: Mapping[str, Interval]) -> tuple[list[str], list[str]]:
+    """The severity bins that hold fault windows and the fault kinds with an AUC in any of them, of one
+    method's AUC intervals."""
+    labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
+    subs = {key.removeprefix("auc_") for key in auc if key.startswith("auc_")} - {"mechanical"}
+    return labels, sorted(k for k in subs if any(severity_key(b, k) in auc for b in labels))
+
+
 def _severity_by_kind_table(intervals: RunIntervals | None, h: str = "##") -> list[str]:
     """The paired-difference reference's fault AUC per fault kind (rows) and severity bin (columns), for
     the bins and kinds that hold fault windows; nothing without severities, intervals or reference."""
@@ -725,9 +733,7 @@ def _severity_by_kind_table(intervals: RunIntervals | None, h: str = "##") -> li
     if intervals is None or reference is None or reference not in intervals.methods:
         return []
     auc = intervals.methods[reference].auc
-    labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
-    subs = {key.removeprefix("auc_") for key in auc if key.startswith("auc_")} - {"mechanical"}
-    kinds = sorted(k for k in subs if any(severity_key(b, k) in auc for b in labels))
+    labels, kinds = _fault_bins_and_kinds(auc)
     if not kinds:
         return []
     lines = [
@@ -764,9 +770,7 @@ def _ablation_fault_table(
         )
     )
     auc = intervals.methods[intervals.reference].auc
-    labels = [b for b, _, _ in severity_bins() if severity_key(b) in auc]
-    subs = {key.removeprefix("auc_") for key in auc if key.startswith("auc_")} - {"mechanical"}
-    kinds = sorted(k for k in subs if any(severity_key(b, k) in auc for b in labels))
+    labels, kinds = _fault_bins_and_kinds(auc)
     if not ablations or not kinds:
         return []
 

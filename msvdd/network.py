@@ -398,7 +398,7 @@ class Fusion(nn.Module):
         missing_a = audio_tokens is not None and audio_angles is None
         missing_i = imu_tokens is not None and imu_angles is None
         if self.order_view and (missing_a or missing_i):
-            raise ValueError("order_view: the wheels' angles at the tokens are needed")
+            raise ValueError("order_view: the wheels' angles at the tokens (from the odometry) are needed")
         if audio_tokens is None or imu_tokens is None:
             tokens = audio_tokens if audio_tokens is not None else imu_tokens
             if tokens is None:
@@ -419,8 +419,8 @@ class Fusion(nn.Module):
         return FusionOutput(z=self.project(fused), fused_a=None, fused_i=None)
 
     def pool(self, tokens: torch.Tensor, angles: torch.Tensor | None) -> torch.Tensor:
-        """`pool` with this fusion's kind; the angles only with `order_view`."""
-        return pool(tokens, self.pooling, angles if self.order_view else None)
+        """`pool` with this fusion's kind and the angles (given with `order_view` only)."""
+        return pool(tokens, self.pooling, angles)
 
 
 @dataclass
@@ -489,10 +489,8 @@ class FusionNet(nn.Module):
         """audio (N, 8820, 2) or log-mel (N, 2, 67, 32), imu (N, 400) or (N, 400, 7), normalised, and with
         `order_view` the wheels' encoder angles (N, 400, W) (rad, from the window's first sample) ->
         output."""
-        if self.order_view and odometry is None:
-            raise ValueError("order_view: the network needs the wheels' odometry (N, 400, W)")
         a_ang = i_ang = None
-        if self.order_view and odometry is not None:
+        if self.order_view and odometry is not None:  # without it, the fusion says what is missing
             a_ang = token_angles(odometry, self.audio_angle_reader)
             i_ang = token_angles(odometry, self.imu_angle_reader)
         a_tok = self.audio_encoder(audio) if self.audio_encoder is not None else None

@@ -11,6 +11,7 @@ reads format-1 files (every array float64) too.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import typing
 from dataclasses import dataclass, field
@@ -332,10 +333,21 @@ class Trace:
             raise TraceError(f"{source}: malformed trace ({exc})") from exc
 
 
+def _hints(cls: type) -> dict[str, Any]:
+    """The resolved field types of a trace record class (resolved once: `typing.get_type_hints` compiles
+    every string annotation again on each call)."""
+    return _resolved_hints(cls)
+
+
+@functools.cache
+def _resolved_hints(cls: Any) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
 def _flatten(obj: Any, prefix: str = "") -> dict[str, np.ndarray]:
     """Dataclass tree -> flat {dotted name: array}; tuples of records are stored column-wise."""
     out: dict[str, np.ndarray] = {}
-    hints = typing.get_type_hints(type(obj))
+    hints = _hints(type(obj))
     for f in dataclasses.fields(obj):
         key = prefix + f.name
         value = getattr(obj, f.name)
@@ -345,7 +357,7 @@ def _flatten(obj: Any, prefix: str = "") -> dict[str, np.ndarray]:
             out[key + ".__len__"] = np.asarray(len(value), dtype=np.int64)
             for rf in dataclasses.fields(record):
                 column = [getattr(item, rf.name) for item in value]
-                out[f"{key}.{rf.name}"] = _column(column, typing.get_type_hints(record)[rf.name])
+                out[f"{key}.{rf.name}"] = _column(column, _hints(record)[rf.name])
         elif dataclasses.is_dataclass(hint):
             out.update(_flatten(value, key + "."))
         elif hint == tuple[str, ...]:
@@ -383,7 +395,7 @@ def _record_type(hint: Any) -> type | None:
 
 
 def _unflatten(cls: type, arrays: dict[str, np.ndarray], prefix: str) -> Any:
-    hints = typing.get_type_hints(cls)
+    hints = _hints(cls)
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
         key = prefix + f.name
@@ -391,7 +403,7 @@ def _unflatten(cls: type, arrays: dict[str, np.ndarray], prefix: str) -> Any:
         record = _record_type(hint)
         if record is not None:
             n = int(arrays[key + ".__len__"])
-            rhints = typing.get_type_hints(record)
+            rhints = _hints(record)
             columns = {rf.name: arrays[f"{key}.{rf.name}"] for rf in dataclasses.fields(record)}
             kwargs[f.name] = tuple(
                 record(**{name: _scalar(col[i], rhints[name]) for name, col in columns.items()})

@@ -21,6 +21,7 @@ from sim.world import (
     PHYSICS_DT,
     PLANE_BITS,
     ROBOT_AFFINITY,
+    SLEEP_TOLERANCE,
     SURFACES,
     border_walls,
     heightfield,
@@ -123,6 +124,8 @@ def _arena(scenario: Scenario) -> mjcf.RootElement:
     arena.option.integrator = "implicitfast"
     arena.option.cone = "elliptic"
     arena.option.noslip_iterations = 0
+    arena.option.sleep_tolerance = SLEEP_TOLERANCE
+    arena.option.flag.sleep = "enable"
     arena.size.memory = "8M"
     return arena
 

@@ -73,12 +73,6 @@ class Drive:
         b0, b1 = span[0] // BLOCK, -(-span[1] // BLOCK)
         return values[..., b0 : b1 + 1]
 
-    def index(self, wheel: int, multiple: float, span: tuple[int, int], size: int) -> np.ndarray:
-        """Per-sample nearest-point indices (int32) into a `size`-point table of one cycle (a power of two)
-        of `multiple` x the wheel's rotation, over one span (`kernels.block_table_index`)."""
-        cycles = self.boundaries(self.cycles[wheel], span) * multiple
-        return kernels.block_table_index(cycles, BLOCK, span[1] - span[0], size)
-
     def add_ramped(
         self, out: np.ndarray, signal: np.ndarray, values: np.ndarray, span: tuple[int, int]
     ) -> None:

@@ -1,8 +1,9 @@
 """Compiled loops (numba) for the audio's per-sample work, where numpy needs a pass and a temporary per
-product, or an index per product: a wheel's motor (`motor_mix`), envelopes ramped within control blocks
-(`add_ramped`), wavetable indices (`block_table_index`), scattering copies of a kernel (`overlap_add_into`), a
-fixed fractional delay (`fractional_delay_into`), reading a signal at moving fractional positions (a Doppler
-path, `lagrange_read`), weaving noise beds (`weave`) and the limiter (`soft_limit`). Each touches every
+product, or an index per product: a wheel's motor (`motor_mix`) and rolling (`rolling_mix`), each reading its
+wavetables at the ramped phase in the same pass, envelopes ramped within control blocks (`add_ramped`),
+scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`fractional_delay_into`),
+reading a signal at moving fractional positions (a Doppler path, `lagrange_read`), weaving noise beds
+(`weave`) and the limiter, which also interleaves the channels (`limit_interleave`). Each touches every
 output sample once. Loops index array slices from 0: an index that might be negative costs a wraparound test
 per sample, which stops LLVM vectorising the loop.
 
@@ -12,6 +13,8 @@ compiling it again.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -54,32 +57,42 @@ def lagrange_read(
     `padded` is x with `pad` zeros on either side; reads beyond them are those zeros.
     """
     last = padded.shape[0] - 1
-    for j in range(out.shape[0]):
-        k = j // control
-        r = (j - k * control) / control
-        p = position[k] + (position[k + 1] - position[k]) * r
-        g = gain[k] + (gain[k + 1] - gain[k]) * r
-        i = int(np.floor(p))
-        f = p - i
-        base = i + pad - 1  # x[i - 1] in `padded`
-        if base < 0 or base + 3 > last:
-            taps = np.zeros(4)
-            for t in range(4):
-                q = base + t
-                if 0 <= q <= last:
-                    taps[t] = padded[q]
-            x0, x1, x2, x3 = taps[0], taps[1], taps[2], taps[3]
-        else:
-            x0, x1, x2, x3 = padded[base], padded[base + 1], padded[base + 2], padded[base + 3]
-        low = (f - 1.0) * (f - 2.0)
-        high = (f + 1.0) * f
-        y = (
-            -f * low / 6.0 * x0
-            + (f + 1.0) * low * 0.5 * x1
-            - high * (f - 2.0) * 0.5 * x2
-            + high * (f - 1.0) / 6.0 * x3
+    n = out.shape[0]
+    ramp = np.arange(control) / control  # r at each sample of a block (computed once: no division per sample)
+    for k in range((n + control - 1) // control):
+        p0 = position[k]
+        dp = position[k + 1] - p0
+        g0 = gain[k]
+        dg = gain[k + 1] - g0
+        o = out[k * control : (k + 1) * control]
+        # p is linear within the block: when both its ends (and a sample more) read inside `padded`, every
+        # sample does, and the loop needs no bounds test
+        inside = (
+            math.floor(min(p0, p0 + dp)) + pad - 2 >= 0 and math.floor(max(p0, p0 + dp)) + pad + 3 <= last
         )
-        out[j] += np.float32(g * y)
+        for i in range(o.shape[0]):
+            r = ramp[i]
+            p = p0 + dp * r
+            g = g0 + dg * r
+            f = math.floor(p)
+            base = int(f) + pad - 1  # x[i - 1] in `padded`
+            f = p - f
+            if inside:
+                x0, x1, x2, x3 = padded[base], padded[base + 1], padded[base + 2], padded[base + 3]
+            else:
+                x0 = padded[base] if 0 <= base <= last else np.float32(0.0)
+                x1 = padded[base + 1] if 0 <= base + 1 <= last else np.float32(0.0)
+                x2 = padded[base + 2] if 0 <= base + 2 <= last else np.float32(0.0)
+                x3 = padded[base + 3] if 0 <= base + 3 <= last else np.float32(0.0)
+            low = (f - 1.0) * (f - 2.0)
+            high = (f + 1.0) * f
+            y = (
+                -f * low / 6.0 * x0
+                + (f + 1.0) * low * 0.5 * x1
+                - high * (f - 2.0) * 0.5 * x2
+                + high * (f - 1.0) / 6.0 * x3
+            )
+            o[i] += np.float32(g * y)
 
 
 @njit(cache=True, nogil=True)
@@ -119,22 +132,6 @@ def fractional_delay_into(
 
 
 @njit(cache=True, nogil=True)
-def block_table_index(cycles: np.ndarray, block: int, n: int, size: int) -> np.ndarray:  # pragma: no cover
-    """(n,) int32 nearest-point indices into a power-of-two table of `size` points (one cycle) of the phase
-    whose cycle counts at block boundaries are `cycles` (float64, linear within a block)."""
-    out = np.empty(n, dtype=np.int32)
-    mask = size - 1
-    for b in range((n + block - 1) // block):
-        start = b * block
-        c0 = cycles[b] - np.floor(cycles[b])
-        dc = (cycles[b + 1] - cycles[b]) / block
-        o = out[start : start + block]
-        for i in range(o.shape[0]):
-            o[i] = np.int32(int((c0 + dc * i) * size) & mask)
-    return out
-
-
-@njit(cache=True, nogil=True)
 def add_ramped(out: np.ndarray, signal: np.ndarray, env: np.ndarray, block: int) -> None:  # pragma: no cover
     """out[j] += signal[j] e(j) (float32, in place), e linear within each block between its values at the
     block boundaries `env` (len(out) / block + 1 of them)."""
@@ -147,6 +144,52 @@ def add_ramped(out: np.ndarray, signal: np.ndarray, env: np.ndarray, block: int)
         x = signal[start : start + block]
         for i in range(o.shape[0]):  # indices from 0: no wraparound test, so the loop vectorises
             o[i] += x[i] * (e0 + de * np.float32(i))
+
+
+@njit(cache=True, nogil=True)
+def table_indices(c_start: float, c_end: float, block: int, size: int, out: np.ndarray) -> None:  # pragma: no cover
+    """out[i] = the nearest point (of `size`, a power of two, per cycle) of the phase c_start + (c_end - c_start)
+    i / block cycles (float64): one block of a phase linear within it, in a loop that vectorises, so that the
+    table reads that follow need no conversion."""
+    c0 = c_start - np.floor(c_start)
+    dc = (c_end - c_start) / block
+    mask = size - 1
+    for i in range(out.shape[0]):
+        out[i] = int((c0 + dc * i) * size) & mask
+
+
+@njit(cache=True, nogil=True)
+def rolling_mix(
+    out: np.ndarray,
+    noise: np.ndarray,
+    noise_env: np.ndarray,
+    cycles: np.ndarray,
+    table: np.ndarray,
+    tone_env: np.ndarray,
+    block: int,
+) -> None:  # pragma: no cover - compiled
+    """out[j] += noise[j] n(j), then += table[k] t(j), k the nearest point (`table_indices`) of the phase whose
+    cycle counts at the block boundaries are `cycles`, the envelopes n and t linear within each block between
+    their block-boundary values (as `add_ramped`); the tone only when `table` is not empty. Float32, in
+    place."""
+    n = out.shape[0]
+    size = table.shape[0]
+    k = np.empty(block, dtype=np.int64)
+    for b in range((n + block - 1) // block):
+        start = b * block
+        e0 = np.float32(noise_env[b])
+        de = (np.float32(noise_env[b + 1]) - e0) / np.float32(block)
+        o = out[start : start + block]
+        x = noise[start : start + block]
+        for i in range(o.shape[0]):  # the noise first, in a loop of its own, which vectorises
+            o[i] += x[i] * (e0 + de * np.float32(i))
+        if size == 0:
+            continue
+        table_indices(cycles[b], cycles[b + 1], block, size, k[: o.shape[0]])
+        t0 = np.float32(tone_env[b])
+        dt = (np.float32(tone_env[b + 1]) - t0) / np.float32(block)
+        for i in range(o.shape[0]):
+            o[i] += table[k[i]] * (t0 + dt * np.float32(i))
 
 
 @njit(cache=True, nogil=True)
@@ -173,23 +216,26 @@ def weave(
 
 
 @njit(cache=True, nogil=True)
-def soft_limit(x: np.ndarray, knee: float) -> None:  # pragma: no cover - compiled
-    """Every sample of x (float32, C order, in place): identity up to |x| = knee, then
-    sign(x) (knee + (1 - knee) tanh((|x| - knee) / (1 - knee))) towards full scale."""
-    flat = x.reshape(-1)
+def limit_interleave(x: np.ndarray, knee: float, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[j, c] = the soft limit of x[c, j] (x (C, n) float32 -> out (n, C) float32, in one pass): identity
+    up to |x| = knee, then sign(x) (knee + (1 - knee) tanh((|x| - knee) / (1 - knee))) towards full scale;
+    an infinite knee only interleaves."""
     span = 1.0 - knee
-    for i in range(flat.shape[0]):  # (one branch per sign: a select between +y and -y ran 20x slower)
-        v = flat[i]
-        if v > knee:
-            flat[i] = np.float32(knee + span * np.tanh((v - knee) / span))
-        elif v < -knee:
-            flat[i] = np.float32(-(knee + span * np.tanh((-v - knee) / span)))
+    for c in range(x.shape[0]):
+        row = x[c]
+        for j in range(row.shape[0]):  # (one branch per sign: a select between +y and -y ran 20x slower)
+            v = row[j]
+            if v > knee:
+                v = np.float32(knee + span * np.tanh((v - knee) / span))
+            elif v < -knee:
+                v = np.float32(-(knee + span * np.tanh((-v - knee) / span)))
+            out[j, c] = v
 
 
 @njit(cache=True, nogil=True)
 def motor_mix(
     out: np.ndarray,
-    idx: np.ndarray,
+    cycles: np.ndarray,
     table: np.ndarray,
     tone_env: np.ndarray,
     brush_mod: np.ndarray,
@@ -200,19 +246,21 @@ def motor_mix(
     pwm_env: np.ndarray,
     block: int,
 ) -> None:  # pragma: no cover - compiled
-    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j),
-    k = idx[j], every envelope linear within each block between its values at the block boundaries (float32,
-    in place); the last term only when `carrier` is not empty."""
+    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j), k the
+    nearest point (`table_indices`) of the shaft phase whose cycle counts at the block boundaries are `cycles`,
+    every envelope linear within each block between its values at the block boundaries (float32, in place);
+    the last term only when `carrier` is not empty."""
     n = out.shape[0]
     whine = carrier.shape[0] > 0
+    k = np.empty(block, dtype=np.int64)
     for b in range((n + block - 1) // block):
         start = b * block
+        o = out[start : start + block]
+        table_indices(cycles[b], cycles[b + 1], block, table.shape[0], k[: o.shape[0]])
         t0 = np.float32(tone_env[b])
         dt = (np.float32(tone_env[b + 1]) - t0) / np.float32(block)
         n0 = np.float32(brush_env[b])
         dn = (np.float32(brush_env[b + 1]) - n0) / np.float32(block)
-        o = out[start : start + block]
-        k = idx[start : start + block]
         noise = brush_noise[start : start + block]
         for i in range(o.shape[0]):
             f = np.float32(i)

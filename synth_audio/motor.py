@@ -94,18 +94,18 @@ def motor_wheel(
         out = np.zeros(drive.n, dtype=np.float32)
     carrier_or_none = carrier if pwm and carrier is not None else _SILENT
     side = side_mod if sidebands else _FLAT
+    shaft_cycles = drive.cycles[wheel] * robot.gear_ratio
     for span in drive.spans():
         a, b = span
-        idx = drive.index(wheel, robot.gear_ratio, span, TABLE_SIZE)
         if gated:
             shaft = drive.phase(wheel, robot.gear_ratio, span)
             for gate, k, ph in gated:
                 tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
                 drive.add_ramped(out[a:b], tone, gate * tone_env, span)
         kernels.motor_mix(
-            out[a:b], idx, table, drive.boundaries(tone_env, span), brush_mod, brush_noise[a:b],
-            drive.boundaries(brush_env, span), carrier_or_none[a:b], side, drive.boundaries(pwm_env, span),
-            BLOCK,
+            out[a:b], drive.boundaries(shaft_cycles, span), table, drive.boundaries(tone_env, span), brush_mod,
+            brush_noise[a:b], drive.boundaries(brush_env, span), carrier_or_none[a:b], side,
+            drive.boundaries(pwm_env, span), BLOCK,
         )  # fmt: skip
     return out
 

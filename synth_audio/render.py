@@ -214,13 +214,6 @@ def reference_rms(robot: RobotInfo, config: AudioConfig) -> float:
     return value
 
 
-def _limit(x: np.ndarray) -> np.ndarray:
-    """Monotonic soft limiter: identity below the knee, tanh towards full scale above it (in place;
-    `kernels.soft_limit`)."""
-    kernels.soft_limit(x, _LIMIT_KNEE)
-    return x
-
-
 def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Audio:
     """Render a trace to two-microphone audio.
 
@@ -461,9 +454,10 @@ def _mixdown(stems: dict[str, np.ndarray], config: AudioConfig, n: int) -> Audio
     mix = parts[0].copy() if config.stems else parts[0]  # the first stem's buffer is free to reuse
     for part in parts[1:]:
         mix += part
-    if config.limiter:
-        _limit(mix)
-    samples = np.ascontiguousarray(mix.T, dtype=np.float32)
+    # a monotonic soft limiter (identity below the knee, tanh towards full scale above it), as the channels
+    # are interleaved into the samples
+    samples = np.empty((n, 2), dtype=np.float32)
+    kernels.limit_interleave(mix, _LIMIT_KNEE if config.limiter else math.inf, samples)
     out_stems: dict[str, np.ndarray] = {}
     if config.stems:
         zero = np.zeros((n, 2), dtype=np.float32)

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth_audio.drive import NOMINAL_SPEED, Drive
+from synth_audio import kernels
+from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
 from synth_audio.dsp import damped_modes, harmonic_table, overlap_add_into, white
 
 
@@ -47,6 +48,7 @@ _RATTLE_LEVEL = 0.12
 _TREAD_TABLE = harmonic_table(
     np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.4, 0.15]), np.array([0.0, 1.1, 2.3])
 )
+_NO_TABLE = np.zeros(0, dtype=np.float32)
 
 
 def speed_law(drive: Drive, wheel: int, exponent: float) -> np.ndarray:
@@ -68,13 +70,14 @@ def rolling_wheel(
         out = np.zeros(drive.n, dtype=np.float32)
     noise_env = surface.level * speed_law(drive, wheel, 1.2)
     tread_env = surface.tread * speed_law(drive, wheel, 1.0)
+    table = _TREAD_TABLE if surface.tread > 0 else _NO_TABLE
+    cycles = drive.cycles[wheel] * float(robot.tread_blocks)
     for span in drive.spans():
         a, b = span
-        drive.add_ramped(out[a:b], noise[a:b], noise_env, span)
-        if surface.tread > 0:
-            idx = drive.index(wheel, float(robot.tread_blocks), span, _TREAD_TABLE.size)
-            tone = np.take(_TREAD_TABLE, idx)
-            drive.add_ramped(out[a:b], tone, tread_env, span)
+        kernels.rolling_mix(
+            out[a:b], noise[a:b], drive.boundaries(noise_env, span), drive.boundaries(cycles, span), table,
+            drive.boundaries(tread_env, span), BLOCK,
+        )  # fmt: skip
     if surface.grain_per_m > 0:
         distance = drive.speed_mps[wheel][:-1] * np.diff(drive.block_time)
         pos, amp = poisson_events(rng, distance * surface.grain_per_m, drive.n)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -10,6 +11,7 @@ from sim import simulate
 from sim.engine import STEP_BACK
 from sim.scenario import Obstacle, Reflex, Route, Scenario, Unit, Waypoint
 from sim.trace import Trace
+from sim.world import build_world
 
 GRIP = 1.2 * 9.81
 """More braking than about 1.2 g no tyre on a floor gives, m/s^2."""
@@ -107,3 +109,34 @@ def test_a_bumped_pedestrian_steps_back_and_stands() -> None:
     moved = trace.obstacle_pos[-1, 0, :2] - np.array([0.0, 0.0])
     assert float(np.linalg.norm(moved)) == pytest.approx(STEP_BACK, abs=0.05)
     assert moved[0] > 0.3  # away from the robot, which came from -x
+
+
+def _pushed_box(sleep: bool) -> Trace:
+    box = Obstacle("box", 0.0, 0.0, 0.0, (0.2, 0.2, 0.2))
+    scenario = _scenario((Waypoint(0.5, 0.0, 0.5, ram=0),), (box,), Reflex(kind="push", push_time=1.0), 8.0)
+    world = build_world(scenario)
+    if not sleep:
+        world.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    return simulate(scenario, world)
+
+
+def test_a_resting_box_sleeps_until_the_robot_wakes_it_as_if_it_had_been_awake() -> None:
+    """MuJoCo's sleeping islands (`sim.world.SLEEP_TOLERANCE`): the box at rest sleeps, the robot never does,
+    and the robot's push wakes the box at the same contact, which is then pushed as far as an awake box is."""
+    box = Obstacle("box", 1.0, 1.0, 0.0, (0.2, 0.2, 0.2))
+    world = build_world(_scenario((Waypoint(-3.0, 0.0, 0.0),), (box,)))
+    model, data = world.model, mujoco.MjData(world.model)
+    assert model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP
+    for _ in range(round(0.2 / model.opt.timestep)):  # the robot stands, its motors holding still
+        mujoco.mj_step(model, data)
+    robot_tree = int(model.body_treeid[world.base_body])
+    box_tree = 1 - robot_tree
+    assert data.tree_asleep[box_tree] >= 0 and data.tree_asleep[robot_tree] < 0
+    asleep, awake = _pushed_box(True), _pushed_box(False)
+    for trace in (asleep, awake):
+        assert len(trace.contacts.time) >= 1
+    first = [float(t.contacts.time[0]) for t in (asleep, awake)]
+    assert first[0] == pytest.approx(first[1], abs=asleep.physics_dt)
+    moved = [float(np.linalg.norm(np.ptp(t.obstacle_pos[[0, -1], 0, :2], axis=0))) for t in (asleep, awake)]
+    assert moved[1] > 0.1  # the push moves the box
+    assert moved[0] == pytest.approx(moved[1], rel=0.05)

@@ -103,9 +103,13 @@ def test_weaving_adds_each_snippet_read_circularly_under_the_window() -> None:
 
 
 def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monotonic_above() -> None:
+    unlimited = np.empty((2000, 3), dtype=np.float32)
+    kernels.limit_interleave(np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1), np.inf, unlimited)
+    assert np.array_equal(unlimited.T, np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1))
     x = np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1)
-    y = x.copy()
-    kernels.soft_limit(y, 0.5)
+    out = np.empty((2000, 3), dtype=np.float32)
+    kernels.limit_interleave(x, 0.5, out)
+    y = out.T
     below = np.abs(x) <= 0.5
     assert np.array_equal(y[below], x[below])
     assert np.all(np.abs(y) < 1.0) and np.all(np.diff(y.ravel()) >= 0.0)
@@ -113,13 +117,36 @@ def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monoton
     assert float(y.ravel()[-1]) == pytest.approx(0.5 + 0.5 * np.tanh(5.0), abs=1e-6)
 
 
-def test_block_table_indices_are_the_ramped_phase_read_to_the_nearest_point() -> None:
+def test_the_table_kernels_read_their_table_at_the_nearest_point_of_the_ramped_phase() -> None:
     from synth_audio.dsp import frac_phase, table_index
 
     rng = np.random.default_rng(4)
     cycles = np.cumsum(rng.uniform(-0.2, 0.9, 41))  # forwards and backwards, many cycles
-    got = kernels.block_table_index(cycles, 64, 40 * 64 - 5, 4096)
-    expected = table_index(frac_phase(cycles[None, :], 64, 40 * 64 - 5)[0], 4096)
-    assert got.dtype == np.int32 and got.shape == expected.shape
-    gap = np.abs(got.astype(np.int64) - expected)
-    assert np.all(np.minimum(gap, 4096 - gap) <= 1)  # float64 against float32 phases: one point at most
+    n, ones = 40 * 64 - 5, np.ones(41)
+    expected = table_index(frac_phase(cycles[None, :], 64, n)[0], 4096)
+    points = np.arange(4096, dtype=np.float32)  # a table that holds its own index
+    rolled = np.zeros(n, dtype=np.float32)
+    kernels.rolling_mix(rolled, np.zeros(n, dtype=np.float32), ones, cycles, points, ones, 64)
+    motor = np.zeros(n, dtype=np.float32)
+    zero, silent = np.zeros(4096, np.float32), np.zeros(0, np.float32)
+    kernels.motor_mix(motor, cycles, points, ones, zero, np.zeros(n, np.float32), ones, silent, zero, ones, 64)
+    for got in (rolled, motor):
+        gap = np.abs(got.astype(np.int64) - expected)
+        assert np.all(np.minimum(gap, 4096 - gap) <= 1)  # float64 against float32 phases: one point at most
+
+
+def test_the_mix_kernels_ramp_every_envelope_linearly_within_its_block() -> None:
+    from synth_audio.dsp import block_ramp
+
+    rng = np.random.default_rng(5)
+    n, block = 10 * 32 - 7, 32
+    env = [rng.uniform(0.0, 2.0, 11) for _ in range(3)]
+    noise, carrier = (rng.standard_normal(n).astype(np.float32) for _ in range(2))
+    ramp = [block_ramp(e, block, n).astype(np.float64) for e in env]
+    rolled = np.zeros(n, dtype=np.float32)
+    kernels.rolling_mix(rolled, noise, env[0], np.zeros(11), np.zeros(0, np.float32), env[1], block)
+    assert np.allclose(rolled, noise * ramp[0], atol=1e-5)  # no table: the noise alone
+    motor = np.zeros(n, dtype=np.float32)
+    flat = np.ones(64, dtype=np.float32)
+    kernels.motor_mix(motor, np.zeros(11), flat, env[0], flat, noise, env[1], carrier, flat, env[2], block)
+    assert np.allclose(motor, ramp[0] + noise * ramp[1] + carrier * ramp[2], atol=1e-5)

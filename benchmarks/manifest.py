@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 6
+DATASET_FORMAT_VERSION = 7
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -45,8 +45,13 @@ episodes than under format 4, which stays readable.
 6: the same layout; the audio's noise beds are woven from one library of shaped segments per spectral shape
 (`synth_audio.dsp.bed_pool`), where each episode shaped its own, so a seed makes other audio than under
 format 5, which stays readable.
+7: the same layout; obstacles at rest sleep in the simulator (MuJoCo's sleeping islands,
+`sim.world.SLEEP_TOLERANCE`), so the robot meets a resting box as a woken one rather than one settling by
+the solver's creep, and the audio's damped modes and steady tones are computed by phasors
+(`synth_audio.kernels`), which differ from format 6's sines in float32's last bits: a seed makes other bytes
+than under format 6, which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

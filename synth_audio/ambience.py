@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from synth_audio import kernels
 from synth_audio.dsp import (
     add_at,
     bed_pool,
@@ -128,14 +129,11 @@ def indoor(
     n, sr = scene.n, scene.sample_rate
     duration = n / sr
     fan = bed_pool(sr, (30, 80, 200, 600, 2000, 8000), (0, 2, -4, -14, -26, -42))
-    nb = -(-n // _BLOCK) + 1
-    tb = np.arange(nb) * (_BLOCK / sr)
     mains = 50.0 if rng.uniform() < 0.5 else 60.0
     blade = rng.uniform(70.0, 120.0)
     hum = np.zeros(n, dtype=np.float32)
     for freq, amp in ((mains * 2, 0.08), (mains * 3, 0.04), (blade, 0.12)):
-        phase = frac_phase((freq * tb + rng.uniform())[None, :], _BLOCK, n)[0]
-        hum += np.float32(amp) * np.sin(np.float32(2 * np.pi) * phase)
+        kernels.sinusoid_into(hum, rng.uniform(), freq / sr, amp, False)
     dry = _diffuse(rng, n, fan, 0.3) * np.float32(0.6) + hum[None, :]
     low_sr = sr // decimation
     low_n = -(-n // decimation)

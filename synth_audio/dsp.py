@@ -18,6 +18,8 @@ BED_POOL = 8
 """Shaped segments per noise bed; every overlap-add snippet picks one at a random circular offset."""
 TABLE_SIZE = 2**16
 """Points per cycle of the harmonic wavetables (a power of two)."""
+MODE_FLOOR_DB = 140.0
+"""Decay after which `damped_modes` stops computing a mode, dB: float32 resolves 2^-24 (-144 dB) of a peak."""
 
 
 def white(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -187,17 +189,23 @@ def frac_phase(cycles: np.ndarray, block: int, n: int) -> np.ndarray:
 def damped_modes(
     freqs: np.ndarray, t60: np.ndarray, amps: np.ndarray, phases: np.ndarray, sample_rate: int, length: int
 ) -> np.ndarray:
-    """Sum of exponentially damped sinusoids (a modal bank), float32 of the given length."""
-    t = np.arange(length, dtype=np.float32) / np.float32(sample_rate)
+    """Sum of exponentially damped sinusoids a exp(-6.91 t / T60) sin(2 pi f t + phase) (a modal bank),
+    float32 of the given length (`kernels.damped_modes_into`).
+
+    Each mode is computed until it has decayed by `MODE_FLOOR_DB` (2.3 x its T60), past which it lies under
+    float32's resolution of its own peak: a short mode of a bank with a long one costs its own length only.
+    """
     nyq = 0.48 * sample_rate
     keep = (freqs > 0) & (freqs < nyq) & (amps != 0)
-    f = freqs[keep].astype(np.float32)[:, None]
-    decay = (6.907755 / np.maximum(t60[keep], 1e-4)).astype(np.float32)[:, None]
-    a = amps[keep].astype(np.float32)[:, None]
-    ph = phases[keep].astype(np.float32)[:, None]
-    if f.size == 0:
-        return np.zeros(length, dtype=np.float32)
-    return np.sum(a * np.exp(-decay * t) * np.sin(np.float32(2 * np.pi) * f * t + ph), axis=0)
+    t60_s = np.maximum(np.asarray(t60, dtype=np.float64)[keep], 1e-4)
+    lengths = np.ceil(MODE_FLOOR_DB / 60.0 * t60_s * sample_rate).astype(np.int64) + 1
+    out = np.zeros(length, dtype=np.float32)
+    kernels.damped_modes_into(
+        out, 2.0 * np.pi * np.asarray(freqs, dtype=np.float64)[keep] / sample_rate,
+        6.907755 / (t60_s * sample_rate), np.asarray(amps, dtype=np.float64)[keep],
+        np.asarray(phases, dtype=np.float64)[keep], lengths,
+    )  # fmt: skip
+    return out
 
 
 def modal_length(t60: np.ndarray, sample_rate: int, cap_s: float = 1.5) -> int:

@@ -27,7 +27,7 @@ from scipy import signal
 
 from sim.faults import BEARING_GROWL, SPALL_M
 from sim.trace import FaultRecord, FaultStrikes
-from synth_audio.drive import GRAVITY, Drive
+from synth_audio.drive import BLOCK, GRAVITY, Drive
 from synth_audio.dsp import overlap_add
 from synth_audio.impacts import IMPACT_SCALE, Material, struck_response
 from synth_audio.motor import MESH_WEIGHT, load_envelope
@@ -35,6 +35,11 @@ from synth_audio.motor import MESH_WEIGHT, load_envelope
 DETECTOR_NYQUIST_HZ = 2205.0
 """Nyquist frequency of the detectors' audio (44.1 kHz decimated by 10): characteristic bands stay below."""
 _EDGE_S = 0.02
+_GROWL_SETTLE_S = 0.05
+"""How long before the gate opens the growl's band-pass starts filtering, s. Its slowest pole decays by
+e^(-0.05 x 2 pi x 0.31 f0) in that time (e^-49 at 500 Hz; the bearing's hub resonance, `sim.faults.RESONANCE`,
+is about 1.6 kHz: e^-156), so the growl equals the whole episode's filtering to the precision of its samples,
+at the gated span's cost."""
 _REFERENCE_SPEED = 0.8
 """Approach speed of the kernels' contact time, m/s (the strike speed changes only the impulse)."""
 FAULT_KINDS: tuple[str, ...] = ("flat_spot", "out_of_round", "bearing", "loose_wheel", "motor_degradation")
@@ -97,19 +102,31 @@ def _kernel(fault: FaultRecord, sample_rate: int, rng: np.random.Generator) -> n
     return struck_response(material, 1.0, _REFERENCE_SPEED, sample_rate, rng, IMPACT_SCALE, body)
 
 
-def _growl(drive: Drive, fault: FaultRecord, wheel_sound: np.ndarray, gate: np.ndarray) -> np.ndarray:
-    """A spalled bearing's grinding: the wheel's drive sound in the octave around the hub's resonance, times
-    `BEARING_GROWL` x size / `SPALL_M`, modulated at the ball-pass rate (float32 (n,))."""
+def _growl(
+    drive: Drive, fault: FaultRecord, wheel_sound: np.ndarray, gate: np.ndarray, span: tuple[int, int]
+) -> np.ndarray:
+    """A spalled bearing's grinding over the gate's `span` of samples: the wheel's drive sound in the octave
+    around the hub's resonance, times `BEARING_GROWL` x size / `SPALL_M`, modulated at the ball-pass rate
+    (float32 (span length,))."""
     f0 = float(fault.resonance_hz)
     top = 0.45 * drive.sample_rate
     band = (min(f0 / np.sqrt(2.0), top / 2), min(f0 * np.sqrt(2.0), top))
     sos = signal.butter(2, band, btype="bandpass", fs=drive.sample_rate, output="sos")
-    rough = signal.sosfilt(sos, wheel_sound.astype(np.float64)).astype(np.float32)
-    passes = np.float32(2 * np.pi) * drive.phase(fault.wheel, float(fault.defect_order))
+    a, b = span
+    lead = min(a, round(_GROWL_SETTLE_S * drive.sample_rate))
+    rough = signal.sosfilt(sos, wheel_sound[a - lead : b].astype(np.float64))[lead:].astype(np.float32)
+    passes = np.float32(2 * np.pi) * drive.phase(fault.wheel, float(fault.defect_order), span)
     at_spall = np.float32(fault.defect_order * fault.phase)  # where a ball meets the spall (the strikes)
     swell = np.float32(0.6) + np.float32(0.4) * np.cos(passes - at_spall)
     gain = BEARING_GROWL * min(fault.size / SPALL_M, 1.0)
-    return rough * swell * drive.ramp(gain * gate)
+    return rough * swell * drive.ramp(gain * gate, span)
+
+
+def _gated_span(drive: Drive, gate: np.ndarray) -> tuple[int, int]:
+    """The samples [a, b) where a gate given at block boundaries (ramped within each block) is not zero:
+    from the start of the block before its first non-zero boundary to the end of the block after its last."""
+    on = np.flatnonzero(gate > 0)
+    return max(int(on[0]) - 1, 0) * BLOCK, min((int(on[-1]) + 1) * BLOCK, drive.n)
 
 
 def fault_sound(
@@ -135,25 +152,30 @@ def fault_sound(
     if fault.severity <= 0.0 or not np.any(gate > 0):
         return np.zeros(n, dtype=np.float32)
     kind = fault.kind
+    span = _gated_span(drive, gate)  # the gated sounds are computed there only
+    a, b = span
     if kind in ("flat_spot", "bearing", "loose_wheel"):
         mine = (strikes.wheel == w) & (strikes.time < n / sr)
         pos = np.round(strikes.time[mine] * sr)
         out = overlap_add(n, pos, strikes.impulse[mine], _kernel(fault, sr, rng))
         if kind == "bearing":
-            out += _growl(drive, fault, wheel_sound, gate)
+            out[a:b] += _growl(drive, fault, wheel_sound, gate, span)
         return out
+    out = np.zeros(n, dtype=np.float32)
     if kind == "out_of_round":
         omega = np.abs(drive.rev_s[w]) * 2.0 * np.pi
         depth = np.minimum(fault.size * omega**2 / GRAVITY, 1.0)
-        phase = np.float32(2 * np.pi) * drive.phase(w, 1.0) - np.float32(fault.phase)
-        return wheel_sound * np.cos(phase) * drive.ramp(depth * gate)
+        phase = np.float32(2 * np.pi) * drive.phase(w, 1.0, span) - np.float32(fault.phase)
+        out[a:b] = wheel_sound[a:b] * np.cos(phase) * drive.ramp(depth * gate, span)
+        return out
     # motor_degradation
     robot = drive.robot
     order = float(fault.defect_order) if fault.defect_order > 0 else robot.pinion_teeth * robot.gear_ratio
-    mesh = np.sin(np.float32(2 * np.pi) * drive.phase(w, order) + np.float32(rng.uniform(0, 6.28)))
-    wheel_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, 1.0))
-    shaft_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, robot.gear_ratio))
+    mesh = np.sin(np.float32(2 * np.pi) * drive.phase(w, order, span) + np.float32(rng.uniform(0, 6.28)))
+    wheel_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, 1.0, span))
+    shaft_mod = np.cos(np.float32(2 * np.pi) * drive.phase(w, robot.gear_ratio, span))
     mesh *= np.float32(1.0) + np.float32(0.4) * wheel_mod + np.float32(0.25) * shaft_mod
     speed, load_factor = load_envelope(drive, w)
     tone_env = speed * (0.7 + 0.3 * load_factor)
-    return mesh * drive.ramp(MESH_WEIGHT * fault.size * tone_env * gate)
+    out[a:b] = mesh * drive.ramp(MESH_WEIGHT * fault.size * tone_env * gate, span)
+    return out

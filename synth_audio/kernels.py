@@ -2,10 +2,11 @@
 product, or an index per product: a wheel's motor (`motor_mix`) and rolling (`rolling_mix`), each reading its
 wavetables at the ramped phase in the same pass, envelopes ramped within control blocks (`add_ramped`),
 scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`fractional_delay_into`),
-reading a signal at moving fractional positions (a Doppler path, `lagrange_read`), weaving noise beds
-(`weave`) and the limiter, which also interleaves the channels (`limit_interleave`). Each touches every
-output sample once. Loops index array slices from 0: an index that might be negative costs a wraparound test
-per sample, which stops LLVM vectorising the loop.
+reading a signal at moving fractional positions (a Doppler path, `lagrange_read`), steady tones
+(`sinusoid_into`), banks of damped modes (`damped_modes_into`), weaving noise beds (`weave`) and the limiter,
+which also interleaves the channels (`limit_interleave`). Each touches every output sample once. Loops index
+array slices from 0: an index that might be negative costs a wraparound test per sample, which stops LLVM
+vectorising the loop.
 
 Compiled without fast-math, so the same inputs give the same samples on the same machine; `cache=True`
 keeps the machine code beside the module (`__pycache__`), so a worker process loads it instead of
@@ -18,6 +19,11 @@ import math
 
 import numpy as np
 from numba import njit
+
+_LANES = 8
+"""Independent phasors of `sinusoid_into` (consecutive samples)."""
+_ANCHOR = 4096
+"""Samples between `sinusoid_into`'s restarts from the exact phase (a multiple of `_LANES`)."""
 
 
 @njit(cache=True, nogil=True)
@@ -39,6 +45,61 @@ def overlap_add_into(
         taps = kernel[lo:hi]
         for k in range(o.shape[0]):  # indices from 0: no wraparound test, so the loop vectorises
             o[k] += a * taps[k]
+
+
+@njit(cache=True, nogil=True)
+def sinusoid_into(
+    out: np.ndarray, start: float, step: float, amp: float, cosine: bool
+) -> None:  # pragma: no cover - compiled
+    """out[j] += amp sin(2 pi (start + step j)) (amp cos with `cosine`): a steady tone of `step` cycles per
+    sample. Eight phasors, one per lane of eight consecutive samples, each turned by eight samples' rotation
+    (no transcendental per sample, and eight independent multiply chains); every `_ANCHOR` samples they
+    restart from the exact phase, so rounding never accumulates over more than that many steps."""
+    n = out.shape[0]
+    zr = np.empty(_LANES)
+    zi = np.empty(_LANES)
+    turn = 2.0 * math.pi * step * _LANES
+    qr, qi = math.cos(turn), math.sin(turn)
+    offset = 0.5 * math.pi if cosine else 0.0
+    for a in range(0, n, _ANCHOR):
+        for lane in range(_LANES):
+            c = start + step * (a + lane)
+            angle = 2.0 * math.pi * (c - math.floor(c)) + offset
+            zr[lane] = amp * math.cos(angle)
+            zi[lane] = amp * math.sin(angle)
+        o = out[a : a + _ANCHOR]
+        whole = o.shape[0] - o.shape[0] % _LANES
+        for i in range(0, whole, _LANES):
+            for lane in range(_LANES):
+                o[i + lane] += np.float32(zi[lane])
+                r = zr[lane]
+                zr[lane] = r * qr - zi[lane] * qi
+                zi[lane] = r * qi + zi[lane] * qr
+        for lane in range(o.shape[0] - whole):
+            o[whole + lane] += np.float32(zi[lane])
+
+
+@njit(cache=True, nogil=True)
+def damped_modes_into(
+    out: np.ndarray,
+    omega: np.ndarray,
+    decay: np.ndarray,
+    amps: np.ndarray,
+    phases: np.ndarray,
+    lengths: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """out[j] += sum over modes m of amps[m] exp(-decay[m] j) sin(omega[m] j + phases[m]) for j < lengths[m]
+    (per sample: rad and 1/sample), each mode by the exact rotation-and-decay of a complex phasor, z <- z q
+    with q = exp(-decay + i omega), in float64 (the recurrence's rounding grows like j x 1e-16)."""
+    for m in range(omega.shape[0]):
+        qr = math.exp(-decay[m]) * math.cos(omega[m])
+        qi = math.exp(-decay[m]) * math.sin(omega[m])
+        zr = amps[m] * math.cos(phases[m])
+        zi = amps[m] * math.sin(phases[m])
+        o = out[: min(lengths[m], out.shape[0])]
+        for j in range(o.shape[0]):
+            o[j] += np.float32(zi)
+            zr, zi = zr * qr - zi * qi, zr * qi + zi * qr
 
 
 @njit(cache=True, nogil=True)
@@ -147,10 +208,12 @@ def add_ramped(out: np.ndarray, signal: np.ndarray, env: np.ndarray, block: int)
 
 
 @njit(cache=True, nogil=True)
-def table_indices(c_start: float, c_end: float, block: int, size: int, out: np.ndarray) -> None:  # pragma: no cover
-    """out[i] = the nearest point (of `size`, a power of two, per cycle) of the phase c_start + (c_end - c_start)
-    i / block cycles (float64): one block of a phase linear within it, in a loop that vectorises, so that the
-    table reads that follow need no conversion."""
+def table_indices(
+    c_start: float, c_end: float, block: int, size: int, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """out[i] = the nearest point (of `size`, a power of two, per cycle) of the phase
+    c_start + (c_end - c_start) i / block cycles (float64): one block of a phase linear within it, in a loop
+    that vectorises, so that the table reads that follow need no conversion."""
     c0 = c_start - np.floor(c_start)
     dc = (c_end - c_start) / block
     mask = size - 1
@@ -168,10 +231,10 @@ def rolling_mix(
     tone_env: np.ndarray,
     block: int,
 ) -> None:  # pragma: no cover - compiled
-    """out[j] += noise[j] n(j), then += table[k] t(j), k the nearest point (`table_indices`) of the phase whose
-    cycle counts at the block boundaries are `cycles`, the envelopes n and t linear within each block between
-    their block-boundary values (as `add_ramped`); the tone only when `table` is not empty. Float32, in
-    place."""
+    """out[j] += noise[j] n(j), then += table[k] t(j), k the nearest point (`table_indices`) of the phase
+    whose cycle counts at the block boundaries are `cycles`, the envelopes n and t linear within each block
+    between their block-boundary values (as `add_ramped`); the tone only when `table` is not empty. Float32,
+    in place."""
     n = out.shape[0]
     size = table.shape[0]
     k = np.empty(block, dtype=np.int64)
@@ -246,10 +309,10 @@ def motor_mix(
     pwm_env: np.ndarray,
     block: int,
 ) -> None:  # pragma: no cover - compiled
-    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j), k the
-    nearest point (`table_indices`) of the shaft phase whose cycle counts at the block boundaries are `cycles`,
-    every envelope linear within each block between its values at the block boundaries (float32, in place);
-    the last term only when `carrier` is not empty."""
+    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j),
+    k the nearest point (`table_indices`) of the shaft phase whose cycle counts at the block boundaries are
+    `cycles`, every envelope linear within each block between its values at the block boundaries (float32,
+    in place); the last term only when `carrier` is not empty."""
     n = out.shape[0]
     whine = carrier.shape[0] > 0
     k = np.empty(block, dtype=np.int64)

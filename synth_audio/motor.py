@@ -17,7 +17,7 @@ import numpy as np
 
 from synth_audio import kernels
 from synth_audio.drive import BLOCK, NOMINAL_SPEED, Drive
-from synth_audio.dsp import TABLE_SIZE, frac_phase, unit_table
+from synth_audio.dsp import TABLE_SIZE, unit_table
 
 _SHAFT = ((1, 0.18), (2, 0.28), (3, 0.1))
 """(harmonic of the shaft, weight): mechanical unbalance and misalignment."""
@@ -103,8 +103,8 @@ def motor_wheel(
                 tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
                 drive.add_ramped(out[a:b], tone, gate * tone_env, span)
         kernels.motor_mix(
-            out[a:b], drive.boundaries(shaft_cycles, span), table, drive.boundaries(tone_env, span), brush_mod,
-            brush_noise[a:b], drive.boundaries(brush_env, span), carrier_or_none[a:b], side,
+            out[a:b], drive.boundaries(shaft_cycles, span), table, drive.boundaries(tone_env, span),
+            brush_mod, brush_noise[a:b], drive.boundaries(brush_env, span), carrier_or_none[a:b], side,
             drive.boundaries(pwm_env, span), BLOCK,
         )  # fmt: skip
     return out
@@ -130,9 +130,6 @@ def pwm_carrier(drive: Drive, phase: float) -> np.ndarray | None:
     hz = drive.robot.pwm_hz
     if hz >= 0.46 * drive.sample_rate:
         return None
-    cycles = (hz * drive.block_time + phase / (2.0 * np.pi))[None, :]
-    out = np.empty(drive.n, dtype=np.float32)
-    for a, b in drive.spans():
-        b0, b1 = a // BLOCK, -(-b // BLOCK)
-        out[a:b] = np.cos(np.float32(2.0 * np.pi) * frac_phase(cycles[:, b0 : b1 + 1], BLOCK, b - a)[0])
+    out = np.zeros(drive.n, dtype=np.float32)
+    kernels.sinusoid_into(out, phase / (2.0 * np.pi), hz / drive.sample_rate, 1.0, True)
     return out

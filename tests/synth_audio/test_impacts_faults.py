@@ -164,3 +164,26 @@ def test_a_spalled_bearing_grinds_loudest_where_its_balls_strike(phase: float, q
     mean = np.bincount(bins, power, 8) / np.bincount(bins, minlength=8)
     loudest = (np.argmax(mean) + 0.5) / 8  # of a defect period
     assert min(loudest, 1.0 - loudest) < 0.13, mean
+
+
+def test_a_bearing_growls_over_its_gate_as_the_whole_episode_filtered_would() -> None:
+    # The growl is filtered over the gate's span only, from `_GROWL_SETTLE_S` before it
+    # (`synth_audio.faults`): against the same band-pass run from the episode's first sample, it is equal to
+    # float32 precision.
+    from synth_audio import faults as fault_sounds
+    from synth_audio.drive import build_drive
+
+    fault = _record("bearing", 1.0, 1.2, 0.6, 3.57, 1600.0)
+    trace = make_trace(2.5, 20.0, faults=(fault,), surface="carpet")
+    n = round(trace.duration * SR)
+    drive = build_drive(
+        trace.robot, trace.time, trace.wheel_angle, trace.wheel_speed, trace.wheel_torque, n, SR
+    )  # fmt: skip
+    wheel_sound = np.random.default_rng(3).standard_normal(n).astype(np.float32)
+    gate = fault_sounds.window(drive, fault)
+    a, b = fault_sounds._gated_span(drive, gate)
+    assert 0 < a < 1.2 * SR - 0.02 * SR and 1.8 * SR + 0.02 * SR < b < n  # the gate, its ramps and a block
+    settled = fault_sounds._growl(drive, fault, wheel_sound, gate, (a, b))
+    whole = fault_sounds._growl(drive, fault, wheel_sound, gate, (0, n))
+    assert not np.any(whole[:a]) and not np.any(whole[b:])
+    assert np.allclose(settled, whole[a:b], rtol=0.0, atol=1e-6 * float(np.max(np.abs(whole))))

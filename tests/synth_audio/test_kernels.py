@@ -129,7 +129,8 @@ def test_the_table_kernels_read_their_table_at_the_nearest_point_of_the_ramped_p
     kernels.rolling_mix(rolled, np.zeros(n, dtype=np.float32), ones, cycles, points, ones, 64)
     motor = np.zeros(n, dtype=np.float32)
     zero, silent = np.zeros(4096, np.float32), np.zeros(0, np.float32)
-    kernels.motor_mix(motor, cycles, points, ones, zero, np.zeros(n, np.float32), ones, silent, zero, ones, 64)
+    no_noise = np.zeros(n, np.float32)
+    kernels.motor_mix(motor, cycles, points, ones, zero, no_noise, ones, silent, zero, ones, 64)
     for got in (rolled, motor):
         gap = np.abs(got.astype(np.int64) - expected)
         assert np.all(np.minimum(gap, 4096 - gap) <= 1)  # float64 against float32 phases: one point at most
@@ -150,3 +151,31 @@ def test_the_mix_kernels_ramp_every_envelope_linearly_within_its_block() -> None
     flat = np.ones(64, dtype=np.float32)
     kernels.motor_mix(motor, np.zeros(11), flat, env[0], flat, noise, env[1], carrier, flat, env[2], block)
     assert np.allclose(motor, ramp[0] + noise * ramp[1] + carrier * ramp[2], atol=1e-5)
+
+
+@pytest.mark.parametrize("cosine", [False, True])
+def test_a_steady_tone_is_the_sinusoid_of_its_phase_across_restarts_and_its_tail(cosine: bool) -> None:
+    n = 3 * 4096 + 13  # three restarts from the exact phase and a tail shorter than the eight lanes
+    start, step, amp = 0.37, 1234.5 / 44100.0, 0.8
+    out = np.full(n, 0.25, dtype=np.float32)
+    kernels.sinusoid_into(out, start, step, amp, cosine)
+    angle = 2.0 * np.pi * (start + step * np.arange(n))
+    expected = 0.25 + amp * (np.cos(angle) if cosine else np.sin(angle))
+    assert np.allclose(out, expected, rtol=0.0, atol=1e-6)
+
+
+def test_damped_modes_are_decaying_sinusoids_each_stopped_140_db_down() -> None:
+    from synth_audio.dsp import MODE_FLOOR_DB, damped_modes
+
+    sr, length = 8000, 4000
+    freqs, t60 = np.array([440.0, 1000.0, 5000.0]), np.array([0.3, 0.02, 0.1])  # 5 kHz: above 0.48 sr
+    amps, phases = np.array([1.0, 0.5, 2.0]), np.array([0.3, 1.0, 0.0])
+    got = damped_modes(freqs, t60, amps, phases, sr, length)
+    t = np.arange(length) / sr
+    expected = np.zeros(length)
+    for f, d, a, p in zip(freqs[:2], t60[:2], amps[:2], phases[:2], strict=True):
+        stop = int(np.ceil(MODE_FLOOR_DB / 60.0 * d * sr)) + 1
+        expected[:stop] += (a * np.exp(-6.907755 * t / d) * np.sin(2 * np.pi * f * t + p))[:stop]
+    assert got.dtype == np.float32 and np.allclose(got, expected, rtol=0.0, atol=1e-6)
+    short = int(np.ceil(MODE_FLOOR_DB / 60.0 * 0.02 * sr)) + 1
+    assert 0.5 * np.exp(-6.907755 * short / sr / 0.02) < 2**-24  # what is left out lies under float32's step

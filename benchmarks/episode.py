@@ -32,6 +32,7 @@ from benchmarks.errors import InputNotFoundError, UserError
 from benchmarks.json_records import plain, read_json, read_record, write_json
 from sim.odometry import wheel_encoders
 from sim.trace import Trace
+from sim.trace_storage import write_npz
 from sim.vocab import LABELS, SUB_KINDS
 
 EPISODE_FORMAT_VERSION = 3
@@ -484,16 +485,7 @@ class ImuArrays:
     def write(self, path: Path) -> None:
         """Write the arrays to a compressed `.npz` (deterministic bytes)."""
         with open(path, "wb") as handle:
-            np.savez_compressed(
-                handle,
-                time=self.time,
-                vel_z=self.vel_z,
-                imu6=self.imu6,
-                label=self.label,
-                sub_kind=self.sub_kind,
-                label_wheel=self.label_wheel,
-                wheel_pos=self.wheel_pos,
-            )
+            write_npz(handle, {name: getattr(self, name) for name in IMU_SIGNALS})
 
 
 IMU_SIGNALS: tuple[str, ...] = tuple(f.name for f in fields(ImuArrays))

@@ -307,7 +307,7 @@ class Trace:
         target = Path(path)
         arrays = self._stored_arrays()
         with atomic_file(target) as handle:
-            np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
+            trace_storage.write_npz(handle, arrays)
         return target
 
     @classmethod

@@ -46,9 +46,9 @@ class Recording:
     """The physics-rate sensors of an episode, as `run_route` records them.
 
     The rollout writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
-    `move` then copies the buffer to one C-contiguous (n, width) array per signal (`cols`: what
-    `assemble_trace` takes apart), so there is no (n, nsensordata) array and no strided copy of it at the
-    end. The contact sensors (`contact`: per obstacle or wheel, found count, net force, centroid) are kept
+    `move` then copies the signals (the sensors up to the contact sensors, which follow them) to one
+    (n, width of the signals) array in one copy of whole rows, of which each signal is a column view (`cols`:
+    what `assemble_trace` takes apart), so there is no (n, nsensordata) array. The contact sensors (`contact`: per obstacle or wheel, found count, net force, centroid) are kept
     densely for the found counts only; force and centroid are copied for the blocks (the buffer's
     length) in which a contact was found and stay 0 elsewhere (their array is made at the first such block:
     a sensor that never finds a contact reads as a read-only view of zeros). `contact_events` and
@@ -81,11 +81,15 @@ class Recording:
         """Where the rollout writes: (periods x CONTROL_STEPS, nsensordata)."""
         self.done = 0
         """Steps moved from `buffer` to the arrays."""
-        self._signals = {start: np.empty((n, width)) for start, width in groups}
+        first = min(start for start, _ in groups)
+        self._width = max(start + width for start, width in groups)
+        if first != 0 or sum(width for _, width in groups) != self._width:
+            raise RuntimeError(f"the signals {groups} are not the first {self._width} sensor values")
+        self._signal_block = np.empty((n, self._width))
+        self._signals = {start: self._signal_block[:, start : start + width] for start, width in groups}
         self._found = {start: np.empty((n, count)) for start, count in contacts}
         self._values: dict[int, np.ndarray] = {}  # made at the first block with a contact (`move`)
         buffer = self.buffer
-        self._moves = [(self._signals[start], buffer[:, start : start + width]) for start, width in groups]
         self._contact_moves = [
             (
                 start,
@@ -99,8 +103,7 @@ class Recording:
     def move(self, stop: int) -> None:
         """Copy the buffer's first `stop - done` rows (steps done to stop of the episode) to the arrays."""
         start, rows = self.done, stop - self.done
-        for array, column in self._moves:
-            array[start:stop] = column[:rows]
+        self._signal_block[start:stop] = self.buffer[:rows, : self._width]  # every signal, in one copy
         for at, found, found_column, value_columns in self._contact_moves:
             block = found[start:stop]
             block[:] = found_column[:rows]
@@ -112,7 +115,8 @@ class Recording:
         self.done = stop
 
     def cols(self, start: int, width: int) -> np.ndarray:
-        """The (n, width) sensors of the signal at sensordata[start] (not a contact sensor)."""
+        """The (n, width) sensors of the signal at sensordata[start] (not a contact sensor): a view of the
+        signals' array."""
         array = self._signals[start]
         if array.shape[1] != width:
             raise ValueError(f"no recorded signal of width {width} at sensordata[{start}]")

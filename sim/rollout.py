@@ -47,11 +47,12 @@ class Recording:
 
     The rollout writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
     `move` then copies the signals (the sensors up to the contact sensors, which follow them) to one
-    (n, width of the signals) array in one copy of whole rows, of which each signal is a column view (`cols`:
-    what `assemble_trace` takes apart), so there is no (n, nsensordata) array. The contact sensors (`contact`: per obstacle or wheel, found count, net force, centroid) are kept
-    densely for the found counts only; force and centroid are copied for the blocks (the buffer's
-    length) in which a contact was found and stay 0 elsewhere (their array is made at the first such block:
-    a sensor that never finds a contact reads as a read-only view of zeros). `contact_events` and
+    (n, width of the signals) array in one copy of whole rows, of which each signal is a column view
+    (`cols`: what `assemble_trace` takes apart), so there is no (n, nsensordata) array. The contact sensors
+    (`contact`: per obstacle or wheel, found count, net force, centroid) are kept densely for the found
+    counts only; force and centroid are copied for the blocks (the buffer's length) in which a contact was
+    found and stay 0 elsewhere (their array is made at the first such block: a sensor that never finds a
+    contact reads as a read-only view of zeros). `contact_events` and
     `transient_events` read them only inside runs of found contacts (gaps shorter than `MERGE_GAP` merged),
     which never reach a block without one, so the events are the same as from the full arrays.
     """

@@ -142,6 +142,14 @@ def wavetable(phase: np.ndarray, table: np.ndarray) -> np.ndarray:
     return np.take(table, table_index(phase, table.size))
 
 
+def block_wavetable(cycles: np.ndarray, block: int, n: int, table: np.ndarray) -> np.ndarray:
+    """(n,) `wavetable(frac_phase(cycles, block, n), table)` for one tone's cycle counts at block
+    boundaries (1-D), the same samples in one pass (`kernels.wavetable_read`)."""
+    out = np.empty(n, dtype=np.float32)
+    kernels.wavetable_read(np.ascontiguousarray(cycles, dtype=np.float64), block, table, out)
+    return out
+
+
 def table_index(phase: np.ndarray, size: int) -> np.ndarray:
     """Nearest-point index into a power-of-two wavetable of `size` points for `phase` cycles (>= 0)."""
     idx = (phase * np.float32(size)).astype(np.int32)

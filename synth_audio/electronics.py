@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.trace import RobotInfo
-from synth_audio.dsp import bed_pool, frac_phase, noise_bed, normalise_rms, unit_table, wavetable
+from synth_audio.dsp import bed_pool, block_wavetable, noise_bed, normalise_rms, unit_table
 
 FAN_DB = -20.0
 """RMS of the fan at the microphones re the unit's reference drive, dB (48 dB SPL at the default 68)."""
@@ -95,7 +95,7 @@ def fan_sound(fan: Fan, n: int, sample_rate: int, rng: np.random.Generator) -> n
     table = unit_table(ks[keep], amps[keep], np.asarray(fan.phases)[keep])
     nb = -(-n // _BLOCK)
     cycles = np.arange(nb + 1, dtype=np.float64) * (_BLOCK / sample_rate) * (fan.rpm / 60.0)
-    tones = normalise_rms(wavetable(frac_phase(cycles[None, :], _BLOCK, n)[0], table))
+    tones = normalise_rms(block_wavetable(cycles, _BLOCK, n, table))
     pool = bed_pool(sample_rate, _NOISE_POINTS_HZ, _NOISE_GAINS_DB)
     out = noise_bed(rng, n, pool)
     out += tones

@@ -2,7 +2,8 @@
 product, or an index per product: a wheel's motor (`motor_mix`) and rolling (`rolling_mix`), each reading its
 wavetables at the ramped phase in the same pass, envelopes ramped within control blocks (`add_ramped`),
 scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`fractional_delay_into`),
-reading a signal at moving fractional positions (a Doppler path, `lagrange_read`), steady tones
+reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at moving fractional positions
+(a Doppler path, `lagrange_read`), steady tones
 (`sinusoid_into`), banks of damped modes (`damped_modes_into`), weaving noise beds (`weave`) and the limiter,
 which also interleaves the channels (`limit_interleave`). Each touches every output sample once. Loops index
 array slices from 0: an index that might be negative costs a wraparound test per sample, which stops LLVM
@@ -205,6 +206,26 @@ def add_ramped(out: np.ndarray, signal: np.ndarray, env: np.ndarray, block: int)
         x = signal[start : start + block]
         for i in range(o.shape[0]):  # indices from 0: no wraparound test, so the loop vectorises
             o[i] += x[i] * (e0 + de * np.float32(i))
+
+
+@njit(cache=True, nogil=True)
+def wavetable_read(
+    cycles: np.ndarray, block: int, table: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """out[j] = table[k(j)], k the nearest point of a power-of-two table (one cycle) of the phase ramped in
+    float32 within each block from the cycle counts at the block boundaries, `cycles` (float64): the samples
+    of `dsp.wavetable(dsp.frac_phase(cycles, block, n), table)`, by the same float32 operations, in one pass
+    (no phase and index arrays)."""
+    n = out.shape[0]
+    size = np.float32(table.shape[0])
+    mask = table.shape[0] - 1
+    ramp = np.arange(block, dtype=np.float32) / np.float32(block)
+    for b in range((n + block - 1) // block):
+        base = np.float32(cycles[b] - np.floor(cycles[b]))
+        inc = np.float32(cycles[b + 1] - cycles[b])
+        o = out[b * block : (b + 1) * block]
+        for i in range(o.shape[0]):
+            o[i] = table[np.int32((base + inc * ramp[i]) * size) & mask]
 
 
 @njit(cache=True, nogil=True)

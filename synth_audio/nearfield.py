@@ -63,8 +63,8 @@ from synth_audio.config import AudioConfig
 from synth_audio.dsp import (
     add_at,
     bed_pool,
+    block_wavetable,
     damped_modes,
-    frac_phase,
     harmonic_table,
     noise_bed,
     normalise_rms,
@@ -281,12 +281,15 @@ def _block_times(n: int, sample_rate: int) -> np.ndarray:
     return np.arange(-(-n // _BLOCK) + 1, dtype=np.float64) * (_BLOCK / sample_rate)
 
 
-def _phase(freq_hz: np.ndarray | float, n: int, sample_rate: int, start: float = 0.0) -> np.ndarray:
-    """(n,) phase in cycles (wrapped near [0, 1)) of a tone whose frequency is given at `_block_times`."""
+def _tone(
+    freq_hz: np.ndarray | float, n: int, sample_rate: int, table: np.ndarray, start: float = 0.0
+) -> np.ndarray:
+    """(n,) wavetable `table` (one cycle) read at the phase of a tone whose frequency is given at
+    `_block_times`, starting at `start` cycles (`dsp.block_wavetable`)."""
     nb = -(-n // _BLOCK)
     f = np.broadcast_to(np.asarray(freq_hz, dtype=np.float64), (nb + 1,))
     cycles = start + np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * (_BLOCK / sample_rate))])
-    return frac_phase(cycles[None, :], _BLOCK, n)[0]
+    return block_wavetable(cycles, _BLOCK, n, table)
 
 
 def _hit(material: Material, speed: float, sample_rate: int, rng: np.random.Generator) -> np.ndarray:
@@ -351,7 +354,7 @@ def _voice(rng: np.random.Generator, sr: int, seconds: float) -> np.ndarray:
     k = max(1, min(40, int(0.45 * sr / float(np.max(f0_c)))))
     ks = np.arange(1, k + 1, dtype=np.float64)
     table = harmonic_table(ks, 1.0 / ks, rng.uniform(0.0, 2.0 * np.pi, k))
-    source = wavetable(_phase(np.interp(_block_times(n, sr), tc, f0_c), n, sr), table)
+    source = _tone(np.interp(_block_times(n, sr), tc, f0_c), n, sr, table)
     source += np.float32(0.05) * white(rng, n)  # breath
     out = np.zeros(n, dtype=np.float32)
     t = 0.0
@@ -441,7 +444,7 @@ def _cart(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> np
         rng, n, bed_pool(sr, (80.0, 300.0, 1200.0, 4000.0, 12000.0), (-8.0, 0.0, -3.0, -12.0, -24.0))
     )
     wheel_hz = speed / (2.0 * np.pi * rng.uniform(0.04, 0.06))
-    beat = wavetable(_phase(wheel_hz, n, sr, rng.uniform()), _SINE)
+    beat = _tone(wheel_hz, n, sr, _SINE, rng.uniform())
     beat *= np.float32(0.35)
     beat += np.float32(1.0)
     roll *= beat
@@ -467,10 +470,10 @@ def _robot(rng: np.random.Generator, sr: int, seconds: float, speed: float) -> n
     table = harmonic_table(ks[keep], amps[keep], rng.uniform(0.0, 2.0 * np.pi, int(np.sum(keep))))
     nc = int(seconds * 100.0) + 2
     wobble = np.interp(_block_times(n, sr), np.arange(nc) / 100.0, 0.01 * _slow(rng, nc, 100.0, 1.0))
-    out = normalise_rms(wavetable(_phase(shaft_hz * (1.0 + wobble), n, sr), table))
+    out = normalise_rms(_tone(shaft_hz * (1.0 + wobble), n, sr, table))
     pwm_hz = rng.uniform(8000.0, 20000.0)
     if pwm_hz < 0.45 * sr:
-        pwm = wavetable(_phase(pwm_hz, n, sr), _SINE)
+        pwm = _tone(pwm_hz, n, sr, _SINE)
         pwm *= np.float32(0.25)
         out += pwm
     roll = noise_bed(

@@ -179,3 +179,17 @@ def test_damped_modes_are_decaying_sinusoids_each_stopped_140_db_down() -> None:
     assert got.dtype == np.float32 and np.allclose(got, expected, rtol=0.0, atol=1e-6)
     short = int(np.ceil(MODE_FLOOR_DB / 60.0 * 0.02 * sr)) + 1
     assert 0.5 * np.exp(-6.907755 * short / sr / 0.02) < 2**-24  # what is left out lies under float32's step
+
+
+@pytest.mark.parametrize("block", [64, 256])
+def test_a_wavetable_read_in_one_pass_is_the_table_at_the_ramped_phase_bit_for_bit(block: int) -> None:
+    from synth_audio.dsp import block_wavetable, frac_phase, harmonic_table, wavetable
+
+    rng = np.random.default_rng(block)
+    table = harmonic_table(np.array([1.0, 3.0]), np.array([1.0, 0.3]), np.array([0.1, 0.2]))
+    for _ in range(10):
+        nb = int(rng.integers(2, 100))
+        n = nb * block - int(rng.integers(0, block))  # a last block cut short
+        cycles = np.cumsum(rng.uniform(-0.5, 3.0, nb + 1)) * rng.uniform(0.1, 1000.0)  # and going backwards
+        expected = wavetable(frac_phase(cycles[None, :], block, n)[0], table)
+        assert np.array_equal(block_wavetable(cycles, block, n, table), expected)

@@ -561,7 +561,7 @@ def plan(
         velocity = np.zeros(3)
     unit = synthesise(event.kind, rng, config.sample_rate, seconds, speed, surface)
     if spec.impulsive:  # hits ring out before IMPULSIVE_MAX_S
-        unit = np.trim_zeros(unit, "b")
+        unit = unit[: unit.size - int(np.argmax(unit[::-1] != 0))] if np.any(unit) else unit[:0]
     signal = unit * np.float32(config.spl_amplitude(level))
     return Emission(signal=signal, start=event.onset, origin=origin, velocity=velocity)
 

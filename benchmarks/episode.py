@@ -16,6 +16,7 @@ one file only use `read_events`, `read_trace`, `read_trace_signals` or `audio_fi
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import shutil
@@ -205,6 +206,13 @@ def read_trace_signals(folder: Path, names: tuple[str, ...]) -> dict[str, np.nda
 
 def software_versions() -> dict[str, str]:
     """Versions of the packages that shape the data, for `meta.json` and `manifest.json`."""
+    return dict(_installed_versions())
+
+
+@functools.cache
+def _installed_versions() -> dict[str, str]:
+    """`software_versions`, read once per process (reading the packages' metadata costs milliseconds, once
+    per episode written otherwise)."""
     import importlib.metadata as md
 
     names = ("msvdd-bench", "mujoco", "dm-control", "numpy", "scipy", "soundfile", "torch")

@@ -269,6 +269,13 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
         shutil.rmtree(staging, ignore_errors=True)
 
 
+def _build_and_checksum(spec: EpisodeSpec, directory: Path) -> tuple[str, dict[str, str]]:
+    """`build_episode`, then its files' checksums (`episode_checksums`), in the worker: the manifest's
+    entry, read while the files are fresh in the worker's cache instead of all of them again at the end."""
+    path = build_episode(spec, directory)
+    return str(path), episode_checksums(path)
+
+
 _STAGING = ".staging-"
 """Prefix of the folder an episode is written into before it is renamed into the dataset."""
 
@@ -396,13 +403,15 @@ def generate(
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
         run = executor if executor is not None else LocalExecutor(workers)
-        build = functools.partial(build_episode, directory=tmp)
-        for path in run.map(build, specs, desc="episodes", progress=progress):
+        build = functools.partial(_build_and_checksum, directory=tmp)
+        checksums: dict[str, dict[str, str]] = {}
+        for path, files in run.map(build, specs, desc="episodes", progress=progress):
             if not Path(path).is_dir():
                 raise DatasetError(
                     f"{path}: written by a worker but not visible here; with a Ray cluster of several "
                     "machines, --out must be on a file system every node mounts at the same path"
                 )
+            checksums[Path(path).name] = files
         for leftover in tmp.glob(f"{_STAGING}*"):  # from attempts of a retried task that were killed
             shutil.rmtree(leftover, ignore_errors=True)
         rows, dropped = _window_rows(tmp, preset, specs)
@@ -417,7 +426,7 @@ def generate(
             seed=seed,
             software=software_versions(),
             dropped_nominal_windows=tuple(dropped),
-            episodes=tuple(ManifestEpisode(s, episode_checksums(tmp / s.episode_id)) for s in specs),
+            episodes=tuple(ManifestEpisode(s, checksums[s.episode_id]) for s in specs),
             windows=write_window_table(tmp, rows),
         ).save(tmp)
         os.replace(tmp, out)

@@ -13,11 +13,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfilt
+from scipy.signal import sosfilt
 
 from synth_audio import kernels
 from synth_audio.dsp import (
     add_at,
+    bandpass_sos,
     bed_pool,
     block_ramp,
     damped_modes,
@@ -114,8 +115,7 @@ def _babble(n: int, sr: int, rng: np.random.Generator, talkers: int) -> np.ndarr
         env = syllable * one_pole_lowpass(phrase.astype(np.float32), 8.0, int(ctrl)) * rng.uniform(0.5, 1.0)
         mix = buzz * np.float32(0.6) + noise_bed(rng, n, pool) * np.float32(0.5)
         out += mix * block_ramp(env[None, :], _BLOCK, n)[0]
-    sos = butter(2, [150.0, 1200.0], btype="bandpass", fs=sr, output="sos")
-    return sosfilt(sos, out).astype(np.float32)
+    return sosfilt(bandpass_sos(150.0, 1200.0, sr), out).astype(np.float32)
 
 
 def indoor(

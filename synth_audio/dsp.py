@@ -7,7 +7,7 @@ import zlib
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.signal import lfilter
+from scipy.signal import butter, lfilter
 
 from synth_audio import kernels
 
@@ -267,6 +267,20 @@ def delay_into(out: np.ndarray, x: np.ndarray, delay: float, gain: float, start:
     m, taps = fractional_taps(delay)
     weights = (taps.astype(np.float64) * gain).astype(np.float32)
     kernels.fractional_delay_into(out, np.ascontiguousarray(x, dtype=np.float32), m, weights, start)
+
+
+def bandpass_sos(low_hz: float, high_hz: float, sample_rate: float) -> np.ndarray:
+    """Second-order Butterworth band-pass between `low_hz` and `high_hz`, as second-order sections
+    (`scipy.signal.butter`), designed once per process for each band (the sources ask for a few bands,
+    often); a copy, which `scipy.signal.sosfilt` may take (it wants a writable array)."""
+    return _bandpass_sos(float(low_hz), float(high_hz), float(sample_rate)).copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _bandpass_sos(low_hz: float, high_hz: float, sample_rate: float) -> np.ndarray:
+    sos = np.asarray(butter(2, [low_hz, high_hz], btype="bandpass", fs=sample_rate, output="sos"))
+    sos.setflags(write=False)
+    return sos
 
 
 def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: float) -> np.ndarray:

@@ -28,7 +28,7 @@ from scipy import signal
 from sim.faults import BEARING_GROWL, SPALL_M
 from sim.trace import FaultRecord, FaultStrikes
 from synth_audio.drive import BLOCK, GRAVITY, Drive
-from synth_audio.dsp import overlap_add
+from synth_audio.dsp import bandpass_sos, overlap_add
 from synth_audio.impacts import IMPACT_SCALE, Material, struck_response
 from synth_audio.motor import MESH_WEIGHT, load_envelope
 
@@ -111,7 +111,7 @@ def _growl(
     f0 = float(fault.resonance_hz)
     top = 0.45 * drive.sample_rate
     band = (min(f0 / np.sqrt(2.0), top / 2), min(f0 * np.sqrt(2.0), top))
-    sos = signal.butter(2, band, btype="bandpass", fs=drive.sample_rate, output="sos")
+    sos = bandpass_sos(float(band[0]), float(band[1]), drive.sample_rate)
     a, b = span
     lead = min(a, round(_GROWL_SETTLE_S * drive.sample_rate))
     rough = signal.sosfilt(sos, wheel_sound[a - lead : b].astype(np.float64))[lead:].astype(np.float32)

@@ -56,12 +56,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfilt
+from scipy.signal import sosfilt
 
 from synth_audio import kernels
 from synth_audio.config import AudioConfig
 from synth_audio.dsp import (
     add_at,
+    bandpass_sos,
     bed_pool,
     block_wavetable,
     damped_modes,
@@ -266,8 +267,7 @@ def _peak_normalise(x: np.ndarray) -> np.ndarray:
 
 def _bandpass(x: np.ndarray, lo: float, hi: float, sample_rate: int) -> np.ndarray:
     hi = min(hi, 0.45 * sample_rate)
-    sos = butter(2, [lo, hi], btype="bandpass", fs=sample_rate, output="sos")
-    return sosfilt(sos, x).astype(np.float32)
+    return sosfilt(bandpass_sos(lo, hi, sample_rate), x).astype(np.float32)
 
 
 def _slow(rng: np.random.Generator, n: int, rate: float, corner_hz: float) -> np.ndarray:

@@ -3,11 +3,11 @@ product, or an index per product: a wheel's motor (`motor_mix`) and rolling (`ro
 wavetables at the ramped phase in the same pass, envelopes ramped within control blocks (`add_ramped`),
 scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`fractional_delay_into`),
 reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at moving fractional positions
-(a Doppler path, `lagrange_read`), steady tones
-(`sinusoid_into`), banks of damped modes (`damped_modes_into`), weaving noise beds (`weave`) and the limiter,
-which also interleaves the channels (`limit_interleave`). Each touches every output sample once. Loops index
-array slices from 0: an index that might be negative costs a wraparound test per sample, which stops LLVM
-vectorising the loop.
+(a Doppler path, `lagrange_read`), steady tones (`sinusoid_into`), banks of damped modes
+(`damped_modes_into`), weaving noise beds (`weave`), the limiter, which also interleaves the channels
+(`limit_interleave`), and a scan for silence (`any_nonzero`). Each touches every output sample once. Loops
+index array slices from 0: an index that might be negative costs a wraparound test per sample, which stops
+LLVM vectorising the loop.
 
 Compiled without fast-math, so the same inputs give the same samples on the same machine; `cache=True`
 keeps the machine code beside the module (`__pycache__`), so a worker process loads it instead of
@@ -297,6 +297,15 @@ def weave(
         w = window[head:]
         for j in range(offset):
             o[j] += x[j] * w[j]
+
+
+@njit(cache=True, nogil=True)
+def any_nonzero(x: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """Whether a 1-D array holds a non-zero (or NaN) element, `numpy.any`'s answer, stopping at the first."""
+    for i in range(x.shape[0]):  # noqa: SIM110 - a loop compiles to this; numba takes no generator to `any`
+        if x[i] != 0:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True)

@@ -42,6 +42,8 @@ _STREAMS = (
 _REFERENCE_SURFACE = "concrete"
 _REFERENCE_SECONDS = 1.0
 _LIMIT_KNEE = 0.5
+_MIX_CHUNK = 2**15
+"""Samples the mix adds up at a time (every stem, in order, then the limiter)."""
 _reference_cache: dict[tuple[object, ...], float] = {}
 
 
@@ -136,7 +138,7 @@ def _spatialize(bus: np.ndarray, delays: np.ndarray, gains: np.ndarray) -> np.nd
     """(2, n) from mono buses (S, n) at body-fixed positions with delays/gains (S, 2)."""
     out = np.zeros((2, bus.shape[1]), dtype=np.float32)
     for s in range(bus.shape[0]):
-        if np.any(bus[s]):
+        if kernels.any_nonzero(bus[s]):
             spatialize_into(out, bus[s], delays[s], gains[s])
     return out
 
@@ -452,12 +454,15 @@ def _mixdown(stems: dict[str, np.ndarray], config: AudioConfig, n: int) -> Audio
     """The Audio: the stems added in order (and limited), plus every `STEM_NAMES` stem if asked for."""
     parts = list(stems.values())
     mix = parts[0].copy() if config.stems else parts[0]  # the first stem's buffer is free to reuse
-    for part in parts[1:]:
-        mix += part
-    # a monotonic soft limiter (identity below the knee, tanh towards full scale above it), as the channels
-    # are interleaved into the samples
     samples = np.empty((n, 2), dtype=np.float32)
-    kernels.limit_interleave(mix, _LIMIT_KNEE if config.limiter else math.inf, samples)
+    knee = _LIMIT_KNEE if config.limiter else math.inf
+    for a in range(0, n, _MIX_CHUNK):  # each chunk's partial sum stays in cache while the stems are added
+        block = mix[:, a : a + _MIX_CHUNK]
+        for part in parts[1:]:
+            block += part[:, a : a + _MIX_CHUNK]
+        # a monotonic soft limiter (identity below the knee, tanh towards full scale above it), as the
+        # channels are interleaved into the samples
+        kernels.limit_interleave(block, knee, samples[a : a + _MIX_CHUNK])
     out_stems: dict[str, np.ndarray] = {}
     if config.stems:
         zero = np.zeros((n, 2), dtype=np.float32)

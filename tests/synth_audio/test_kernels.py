@@ -193,3 +193,9 @@ def test_a_wavetable_read_in_one_pass_is_the_table_at_the_ramped_phase_bit_for_b
         cycles = np.cumsum(rng.uniform(-0.5, 3.0, nb + 1)) * rng.uniform(0.1, 1000.0)  # and going backwards
         expected = wavetable(frac_phase(cycles[None, :], block, n)[0], table)
         assert np.array_equal(block_wavetable(cycles, block, n, table), expected)
+
+
+def test_the_silence_scan_answers_as_numpy_any() -> None:
+    for x in ([0.0, -0.0, 0.0], [0.0, 0.0, 1e-30], [np.nan, 0.0], [], [0.0] * 1000 + [-2.0]):
+        array = np.asarray(x, dtype=np.float32)
+        assert kernels.any_nonzero(array) == bool(np.any(array)), x

@@ -25,8 +25,8 @@ MODE_FLOOR_DB = 140.0
 def white(rng: np.random.Generator, n: int) -> np.ndarray:
     """Unit-variance uniform white noise, float32 (fast: built from the generator's raw bytes)."""
     raw = np.frombuffer(rng.bytes(2 * max(n, 0)), dtype=np.int16)
-    out = raw.astype(np.float32)
-    out *= np.float32(1.0 / _INT16_STD)
+    out = np.empty(raw.shape[0], dtype=np.float32)
+    kernels.scale_int16(raw, np.float32(1.0 / _INT16_STD), out)
     return out
 
 

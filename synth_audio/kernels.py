@@ -5,9 +5,9 @@ scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`f
 reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at moving fractional positions
 (a Doppler path, `lagrange_read`), steady tones (`sinusoid_into`), banks of damped modes
 (`damped_modes_into`), weaving noise beds (`weave`), the limiter, which also interleaves the channels
-(`limit_interleave`), and a scan for silence (`any_nonzero`). Each touches every output sample once. Loops
-index array slices from 0: an index that might be negative costs a wraparound test per sample, which stops
-LLVM vectorising the loop.
+(`limit_interleave`), int16 noise to float32 (`scale_int16`) and a scan for silence (`any_nonzero`). Each
+touches every output sample once. Loops index array slices from 0: an index that might be negative costs a
+wraparound test per sample, which stops LLVM vectorising the loop.
 
 Compiled without fast-math, so the same inputs give the same samples on the same machine; `cache=True`
 keeps the machine code beside the module (`__pycache__`), so a worker process loads it instead of
@@ -297,6 +297,13 @@ def weave(
         w = window[head:]
         for j in range(offset):
             o[j] += x[j] * w[j]
+
+
+@njit(cache=True, nogil=True)
+def scale_int16(raw: np.ndarray, scale: np.float32, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[i] = float32(raw[i]) x scale (float32): int16 samples to float32 in one pass."""
+    for i in range(raw.shape[0]):
+        out[i] = np.float32(raw[i]) * scale
 
 
 @njit(cache=True, nogil=True)

@@ -256,19 +256,13 @@ def rolling_mix(
     whose cycle counts at the block boundaries are `cycles`, the envelopes n and t linear within each block
     between their block-boundary values (as `add_ramped`); the tone only when `table` is not empty. Float32,
     in place."""
-    n = out.shape[0]
+    add_ramped(out, noise, noise_env, block)  # the noise first, in a loop that vectorises
     size = table.shape[0]
+    if size == 0:
+        return
     k = np.empty(block, dtype=np.int64)
-    for b in range((n + block - 1) // block):
-        start = b * block
-        e0 = np.float32(noise_env[b])
-        de = (np.float32(noise_env[b + 1]) - e0) / np.float32(block)
-        o = out[start : start + block]
-        x = noise[start : start + block]
-        for i in range(o.shape[0]):  # the noise first, in a loop of its own, which vectorises
-            o[i] += x[i] * (e0 + de * np.float32(i))
-        if size == 0:
-            continue
+    for b in range((out.shape[0] + block - 1) // block):
+        o = out[b * block : (b + 1) * block]
         table_indices(cycles[b], cycles[b + 1], block, size, k[: o.shape[0]])
         t0 = np.float32(tone_env[b])
         dt = (np.float32(tone_env[b + 1]) - t0) / np.float32(block)

@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 7
+DATASET_FORMAT_VERSION = 8
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -50,8 +50,12 @@ format 5, which stays readable.
 the solver's creep, and the audio's damped modes and steady tones are computed by phasors
 (`synth_audio.kernels`), which differ from format 6's sines in float32's last bits: a seed makes other bytes
 than under format 6, which stays readable.
+8: the same layout; the room's reverberation is computed from quarter-length FFTs of its send's polyphase
+components (`synth_audio.reverb`) and the audio's sums of squares by a compiled loop
+(`synth_audio.kernels.sum_squares`), equal to format 7's sums to float32 rounding: a seed makes other bytes
+than under format 7, which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

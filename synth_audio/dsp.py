@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 import zlib
 
 import numpy as np
@@ -159,15 +160,15 @@ def table_index(phase: np.ndarray, size: int) -> np.ndarray:
 
 def normalise_rms(x: np.ndarray) -> np.ndarray:
     """x scaled to unit RMS in place (all-zero input is returned unchanged)."""
-    rms = float(np.sqrt(np.mean(np.square(x, dtype=np.float64)))) if x.size else 0.0
-    if rms > 0.0:
-        x *= np.float32(1.0 / rms)
+    value = rms(x)
+    if value > 0.0:
+        x *= np.float32(1.0 / value)
     return x
 
 
 def rms(x: np.ndarray) -> float:
-    """Root mean square over every element."""
-    return float(np.sqrt(np.mean(np.square(x, dtype=np.float64)))) if x.size else 0.0
+    """Root mean square over every element (of a contiguous array)."""
+    return math.sqrt(kernels.sum_squares(x.reshape(-1)) / x.size) if x.size else 0.0
 
 
 def block_ramp(values: np.ndarray, block: int, n: int) -> np.ndarray:

@@ -365,3 +365,69 @@ def motor_mix(
             c = carrier[start : start + block]
             for i in range(o.shape[0]):
                 o[i] += side_mod[k[i]] * c[i] * (p0 + dp * np.float32(i))
+
+
+@njit(cache=True, nogil=True)
+def polyphase_combine(phases: np.ndarray, twiddles: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """out[k] = sum_r phases[k, r] twiddles[r, k] for k < len(out) (complex64): the low band of a signal's
+    spectrum from the spectra `phases` (m, D) of its D polyphase components (x[D j + r], r < D), with
+    twiddles[r, k] = exp(-2 pi i k r / (D m')) for the signal's length D m'. Row 0 of the twiddles is 1 and is
+    not multiplied."""
+    d = phases.shape[1]
+    for k in range(out.shape[0]):
+        acc = phases[k, 0]
+        for r in range(1, d):
+            acc += phases[k, r] * twiddles[r, k]
+        out[k] = acc
+
+
+@njit(cache=True, nogil=True)
+def polyphase_spectra(
+    responses: np.ndarray, send: np.ndarray, twiddles: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """out[c, r, k] = responses[c, k] send[k] conj(twiddles[r, k]) / D for k < len(send), 0 above (out (C, D,
+    h) complex64, h > len(send)): the spectra whose inverse FFTs are the D polyphase components of the
+    inverse FFT of the low band responses[c] send (zero above it) at D times their length."""
+    d = out.shape[1]
+    bins = send.shape[0]
+    scale = np.float32(1.0 / d)
+    for c in range(out.shape[0]):
+        for r in range(d):
+            row = out[c, r]
+            for k in range(bins):
+                row[k] = responses[c, k] * send[k] * np.conj(twiddles[r, k]) * scale
+            for k in range(bins, row.shape[0]):
+                row[k] = 0
+
+
+@njit(cache=True, nogil=True)
+def interleave_phases(parts: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[c, D j + r] = parts[c, r, j] while D j + r < out.shape[1] (parts (C, D, m), out (C, n) float32):
+    D polyphase components back into one signal per channel."""
+    d = parts.shape[1]
+    n = out.shape[1]
+    for c in range(out.shape[0]):
+        row = out[c]
+        whole = n // d
+        for j in range(whole):
+            for r in range(d):
+                row[d * j + r] = parts[c, r, j]
+        for i in range(whole * d, n):
+            row[i] = parts[c, i - whole * d, whole]
+
+
+@njit(cache=True, nogil=True)
+def sum_squares(x: np.ndarray) -> float:  # pragma: no cover - compiled
+    """Sum of x[i]^2 over a 1-D array, in float64 (eight running sums, added pairwise at the end), without
+    numpy's float64 temporary of the squares."""
+    acc = np.zeros(8)
+    whole = x.shape[0] // 8 * 8
+    for i in range(0, whole, 8):
+        for j in range(8):
+            v = np.float64(x[i + j])
+            acc[j] += v * v
+    rest = 0.0
+    for i in range(whole, x.shape[0]):
+        v = np.float64(x[i])
+        rest += v * v
+    return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + rest

@@ -431,14 +431,14 @@ def _distant_sources(
     in place.
     """
     env_spectrum = None
-    energy = float(np.sum(np.square(env, dtype=np.float64)))
+    energy = kernels.sum_squares(env.reshape(-1))
     if env_send.size and room is not None:
         env_spectrum = room.send_spectrum_low(env_send)
         energy += room.wet_energy(env_spectrum)
     elif env_send.size:  # no reverberation asked for: the distant sources arrive dry
         t_low = np.arange(env_send.size) * DECIMATION
         env += np.interp(np.arange(n), t_low, env_send).astype(np.float32)[None, :]
-        energy = float(np.sum(np.square(env, dtype=np.float64)))
+        energy = kernels.sum_squares(env.reshape(-1))
     return env_spectrum, float(np.sqrt(energy / env.size))
 
 

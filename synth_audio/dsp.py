@@ -167,7 +167,7 @@ def normalise_rms(x: np.ndarray) -> np.ndarray:
 
 
 def rms(x: np.ndarray) -> float:
-    """Root mean square over every element (of a contiguous array)."""
+    """Root mean square over every element."""
     return math.sqrt(kernels.sum_squares(x.reshape(-1)) / x.size) if x.size else 0.0
 
 

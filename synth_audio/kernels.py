@@ -25,6 +25,8 @@ _LANES = 8
 """Independent phasors of `sinusoid_into` (consecutive samples)."""
 _ANCHOR = 4096
 """Samples between `sinusoid_into`'s restarts from the exact phase (a multiple of `_LANES`)."""
+_TWIDDLE_ANCHOR = 64
+"""Bins between `twiddles_into`'s restarts of its phasor from the exact angle."""
 
 
 @njit(cache=True, nogil=True)
@@ -368,11 +370,27 @@ def motor_mix(
 
 
 @njit(cache=True, nogil=True)
+def twiddles_into(length: int, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[r, k] = exp(-2 pi i k r / length) (out (D, m) complex64): the factors that join the spectra of a
+    signal's D polyphase components into its spectrum. Each row is a float64 phasor restarted from the exact
+    angle every `_TWIDDLE_ANCHOR` bins (its drift stays far under float32's resolution)."""
+    for r in range(out.shape[0]):
+        angle = -2.0 * math.pi * r / length
+        rot = complex(math.cos(angle), math.sin(angle))
+        row = out[r]
+        w = complex(1.0, 0.0)
+        for k in range(row.shape[0]):
+            if k % _TWIDDLE_ANCHOR == 0:
+                w = complex(math.cos(angle * k), math.sin(angle * k))
+            row[k] = w
+            w *= rot
+
+
+@njit(cache=True, nogil=True)
 def polyphase_combine(phases: np.ndarray, twiddles: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     """out[k] = sum_r phases[k, r] twiddles[r, k] for k < len(out) (complex64): the low band of a signal's
-    spectrum from the spectra `phases` (m, D) of its D polyphase components (x[D j + r], r < D), with
-    twiddles[r, k] = exp(-2 pi i k r / (D m')) for the signal's length D m'. Row 0 of the twiddles is 1 and is
-    not multiplied."""
+    spectrum from the spectra `phases` (m, D) of its D polyphase components (x[D j + r], r < D), given its
+    `twiddles_into`. Row 0 of the twiddles is 1 and is not multiplied."""
     d = phases.shape[1]
     for k in range(out.shape[0]):
         acc = phases[k, 0]
@@ -387,7 +405,7 @@ def polyphase_spectra(
 ) -> None:  # pragma: no cover - compiled
     """out[c, r, k] = responses[c, k] send[k] conj(twiddles[r, k]) / D for k < len(send), 0 above (out (C, D,
     h) complex64, h > len(send)): the spectra whose inverse FFTs are the D polyphase components of the
-    inverse FFT of the low band responses[c] send (zero above it) at D times their length."""
+    inverse FFT of the low band responses[c] send (zero above it), given the signal's `twiddles_into`."""
     d = out.shape[1]
     bins = send.shape[0]
     scale = np.float32(1.0 / d)

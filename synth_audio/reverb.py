@@ -9,14 +9,12 @@ convolution.
 Both full-length transforms are computed from quarter-length ones (the same sums, regrouped): the send's low
 band from the FFTs of its four polyphase components (x[4j + r], r < 4) combined with twiddle factors, and each
 channel's wet signal as four interleaved polyphase components, each the inverse FFT of the low band times
-its twiddles. scipy's FFT runs several transforms of one length together in its vector lanes, and a quarter
-of the length stays in cache, so the two take about half the time of one full-length transform (and give
-the same sums within float32 rounding; tests/synth_audio/test_reverb.py checks them against it).
+its twiddles (`synth_audio.kernels`). scipy's FFT runs several transforms of one length together in its
+vector lanes, on a quarter of the memory each, which is faster than one full-length transform; the sums are
+the same within float32 rounding (tests/synth_audio/test_reverb.py checks them against it).
 """
 
 from __future__ import annotations
-
-import functools
 
 import numpy as np
 import scipy.fft as sfft
@@ -63,6 +61,8 @@ class Room:
         self.bins = low // 2
         spec = sfft.rfft(ir, low, axis=-1)[:, : self.bins]
         self.spectrum = (spec * np.float32(np.sqrt(DECIMATION))).astype(np.complex64)
+        self.twiddles = np.empty((DECIMATION, self.bins), dtype=np.complex64)
+        kernels.twiddles_into(self.nfft, self.twiddles)
 
     def send_spectrum(self, send: np.ndarray) -> np.ndarray:
         """Low band of the spectrum of a mono full-rate send (what the room responds to): `rfft(send,
@@ -71,7 +71,7 @@ class Room:
         padded[: send.size] = send
         phases = sfft.rfft(padded.reshape(-1, DECIMATION), axis=0)
         out = np.empty(self.bins, dtype=np.complex64)
-        kernels.polyphase_combine(phases, _twiddles(self.nfft), out)
+        kernels.polyphase_combine(phases, self.twiddles, out)
         return out
 
     def send_spectrum_low(self, send: np.ndarray) -> np.ndarray:
@@ -86,7 +86,7 @@ class Room:
         polyphase components."""
         low = self.nfft // DECIMATION
         spectra = np.empty((2, DECIMATION, low // 2 + 1), dtype=np.complex64)
-        kernels.polyphase_spectra(self.spectrum, send_spectrum, _twiddles(self.nfft), spectra)
+        kernels.polyphase_spectra(self.spectrum, send_spectrum, self.twiddles, spectra)
         parts = sfft.irfft(spectra, low, axis=-1)
         out = np.empty((2, self.n), dtype=np.float32)
         kernels.interleave_phases(parts, out)
@@ -108,15 +108,3 @@ class Room:
     def apply(self, send: np.ndarray) -> np.ndarray:
         """(2, n) reverberation of a mono full-rate send."""
         return self.wet(self.send_spectrum(send))
-
-
-@functools.lru_cache(maxsize=4)
-def _twiddles(nfft: int) -> np.ndarray:
-    """(DECIMATION, nfft / (2 DECIMATION)) complex64 exp(-2 pi i k r / nfft): the factors that join the
-    spectra of a signal's polyphase components into its low band (computed in float64, made once per length;
-    read-only)."""
-    k = np.arange(nfft // (2 * DECIMATION), dtype=np.float64)
-    r = np.arange(DECIMATION, dtype=np.float64)[:, None]
-    out = np.exp((-2j * np.pi / nfft) * (r * k)).astype(np.complex64)
-    out.flags.writeable = False
-    return out

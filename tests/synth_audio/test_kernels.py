@@ -199,3 +199,21 @@ def test_the_silence_scan_answers_as_numpy_any() -> None:
     for x in ([0.0, -0.0, 0.0], [0.0, 0.0, 1e-30], [np.nan, 0.0], [], [0.0] * 1000 + [-2.0]):
         array = np.asarray(x, dtype=np.float32)
         assert kernels.any_nonzero(array) == bool(np.any(array)), x
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_a_sum_of_squares_is_the_float64_sum_of_the_squares(dtype: type) -> None:
+    rng = np.random.default_rng(9)
+    for n in (0, 1, 7, 8, 9, 1001, 100_000):
+        x = (rng.standard_normal(n) * 1e3).astype(dtype)
+        exact = float(np.sum(x.astype(np.float64) ** 2))
+        assert kernels.sum_squares(x) == pytest.approx(exact, rel=1e-13, abs=0.0)
+    assert kernels.sum_squares(np.full(8, 1e20, dtype=np.float32)) == pytest.approx(8e40, rel=1e-6)
+
+
+def test_twiddles_are_the_complex_exponentials_to_float32_rounding() -> None:
+    length, d, m = 2_700_000, 4, 337_500
+    out = np.empty((d, m), dtype=np.complex64)
+    kernels.twiddles_into(length, out)
+    exact = np.exp(-2j * np.pi * np.arange(d)[:, None] * np.arange(m)[None, :] / length)
+    assert np.max(np.abs(out - exact)) < 1e-7

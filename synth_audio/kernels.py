@@ -5,8 +5,10 @@ scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`f
 reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at moving fractional positions
 (a Doppler path, `lagrange_read`), steady tones (`sinusoid_into`), banks of damped modes
 (`damped_modes_into`), weaving noise beds (`weave`), the limiter, which also interleaves the channels
-(`limit_interleave`), int16 noise to float32 (`scale_int16`) and a scan for silence (`any_nonzero`). Each
-touches every output sample once. Loops index array slices from 0: an index that might be negative costs a
+(`limit_interleave`), int16 noise to float32 (`scale_int16`), a scan for silence (`any_nonzero`), sums of
+squares (`sum_squares`), and the room's long FFTs regrouped into quarter-length ones (`twiddles_into`,
+`polyphase_combine`, `polyphase_spectra`, `interleave_phases`; see `synth_audio.reverb`). Each touches every
+output sample once. Loops index array slices from 0: an index that might be negative costs a
 wraparound test per sample, which stops LLVM vectorising the loop.
 
 Compiled without fast-math, so the same inputs give the same samples on the same machine; `cache=True`

@@ -125,40 +125,48 @@ def lagrange_read(
     last = padded.shape[0] - 1
     n = out.shape[0]
     ramp = np.arange(control) / control  # r at each sample of a block (computed once: no division per sample)
+    base = np.empty(control, dtype=np.int64)  # x[i - 1]'s index in `padded`, per sample of a block
+    weights = np.empty((4, control), dtype=np.float64)  # the four Lagrange weights, per sample
+    g = np.empty(control, dtype=np.float64)
     for k in range((n + control - 1) // control):
         p0 = position[k]
         dp = position[k + 1] - p0
         g0 = gain[k]
         dg = gain[k + 1] - g0
         o = out[k * control : (k + 1) * control]
+        m = o.shape[0]
         # p is linear within the block: when both its ends (and a sample more) read inside `padded`, every
         # sample does, and the loop needs no bounds test
         inside = (
             math.floor(min(p0, p0 + dp)) + pad - 2 >= 0 and math.floor(max(p0, p0 + dp)) + pad + 3 <= last
         )
-        for i in range(o.shape[0]):
+        for i in range(m):  # positions and weights first, in a loop without reads (it vectorises)
             r = ramp[i]
             p = p0 + dp * r
-            g = g0 + dg * r
+            g[i] = g0 + dg * r
             f = math.floor(p)
-            base = int(f) + pad - 1  # x[i - 1] in `padded`
+            base[i] = int(f) + pad - 1
             f = p - f
-            if inside:
-                x0, x1, x2, x3 = padded[base], padded[base + 1], padded[base + 2], padded[base + 3]
-            else:
-                x0 = padded[base] if 0 <= base <= last else np.float32(0.0)
-                x1 = padded[base + 1] if 0 <= base + 1 <= last else np.float32(0.0)
-                x2 = padded[base + 2] if 0 <= base + 2 <= last else np.float32(0.0)
-                x3 = padded[base + 3] if 0 <= base + 3 <= last else np.float32(0.0)
             low = (f - 1.0) * (f - 2.0)
             high = (f + 1.0) * f
-            y = (
-                -f * low / 6.0 * x0
-                + (f + 1.0) * low * 0.5 * x1
-                - high * (f - 2.0) * 0.5 * x2
-                + high * (f - 1.0) / 6.0 * x3
-            )
-            o[i] += np.float32(g * y)
+            weights[0, i] = -f * low / 6.0
+            weights[1, i] = (f + 1.0) * low * 0.5
+            weights[2, i] = -high * (f - 2.0) * 0.5
+            weights[3, i] = high * (f - 1.0) / 6.0
+        w0, w1, w2, w3 = weights[0], weights[1], weights[2], weights[3]
+        if inside:
+            for i in range(m):
+                j = base[i]
+                y = w0[i] * padded[j] + w1[i] * padded[j + 1] + w2[i] * padded[j + 2] + w3[i] * padded[j + 3]
+                o[i] += np.float32(g[i] * y)
+        else:
+            for i in range(m):
+                j = base[i]
+                x0 = padded[j] if 0 <= j <= last else np.float32(0.0)
+                x1 = padded[j + 1] if 0 <= j + 1 <= last else np.float32(0.0)
+                x2 = padded[j + 2] if 0 <= j + 2 <= last else np.float32(0.0)
+                x3 = padded[j + 3] if 0 <= j + 3 <= last else np.float32(0.0)
+                o[i] += np.float32(g[i] * (w0[i] * x0 + w1[i] * x1 + w2[i] * x2 + w3[i] * x3))
 
 
 @njit(cache=True, nogil=True)
@@ -335,21 +343,23 @@ def motor_mix(
     out: np.ndarray,
     cycles: np.ndarray,
     table: np.ndarray,
+    modulations: np.ndarray,
     tone_env: np.ndarray,
-    brush_mod: np.ndarray,
     brush_noise: np.ndarray,
     brush_env: np.ndarray,
     carrier: np.ndarray,
-    side_mod: np.ndarray,
     pwm_env: np.ndarray,
     block: int,
 ) -> None:  # pragma: no cover - compiled
-    """out[j] += table[k] tone(j) + brush_mod[k] brush_noise[j] brush(j) + side_mod[k] carrier[j] pwm(j),
-    k the nearest point (`table_indices`) of the shaft phase whose cycle counts at the block boundaries are
+    """out[j] += table[k] tone(j) + brush[k] brush_noise[j] brush(j) + side[k] carrier[j] pwm(j), k the
+    nearest point (`table_indices`) of the shaft phase whose cycle counts at the block boundaries are
     `cycles`, every envelope linear within each block between its values at the block boundaries (float32,
-    in place); the last term only when `carrier` is not empty."""
+    in place); the last term only when `carrier` is not empty. brush[k] and side[k] are the columns of
+    `modulations` (P, 2) at row k mod P: one period of both modulations, P a power of two dividing the
+    table's size, so that one small table stays in cache where two tables of the tone's size did not."""
     n = out.shape[0]
     whine = carrier.shape[0] > 0
+    mask = modulations.shape[0] - 1
     k = np.empty(block, dtype=np.int64)
     for b in range((n + block - 1) // block):
         start = b * block
@@ -360,15 +370,19 @@ def motor_mix(
         n0 = np.float32(brush_env[b])
         dn = (np.float32(brush_env[b + 1]) - n0) / np.float32(block)
         noise = brush_noise[start : start + block]
-        for i in range(o.shape[0]):
-            f = np.float32(i)
-            o[i] += table[k[i]] * (t0 + dt * f) + brush_mod[k[i]] * noise[i] * (n0 + dn * f)
         if whine:
             p0 = np.float32(pwm_env[b])
             dp = (np.float32(pwm_env[b + 1]) - p0) / np.float32(block)
             c = carrier[start : start + block]
             for i in range(o.shape[0]):
-                o[i] += side_mod[k[i]] * c[i] * (p0 + dp * np.float32(i))
+                f = np.float32(i)
+                row = modulations[k[i] & mask]
+                tone_brush = table[k[i]] * (t0 + dt * f) + row[0] * noise[i] * (n0 + dn * f)
+                o[i] = (o[i] + tone_brush) + row[1] * c[i] * (p0 + dp * f)
+        else:
+            for i in range(o.shape[0]):
+                f = np.float32(i)
+                o[i] += table[k[i]] * (t0 + dt * f) + modulations[k[i] & mask, 0] * noise[i] * (n0 + dn * f)
 
 
 @njit(cache=True, nogil=True)

@@ -12,6 +12,7 @@ envelope being `_PWM_LEVEL * max(load, HOLD_LOAD)` for the whole episode (a trac
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -89,11 +90,10 @@ def motor_wheel(
     pwm = carrier is not None  # the drivers switch whenever the robot is powered
     sidebands = robot.pwm_hz + 2.0 * top * robot.motor_pole_pairs < 0.48 * sr
     pwm_env = _PWM_LEVEL * np.maximum(load, HOLD_LOAD)
-    brush_mod, side_mod = _modulations(int(robot.motor_pole_pairs))
+    modulations = _modulations(int(robot.motor_pole_pairs), bool(sidebands))
     if out is None:
         out = np.zeros(drive.n, dtype=np.float32)
     carrier_or_none = carrier if pwm and carrier is not None else _SILENT
-    side = side_mod if sidebands else _FLAT
     shaft_cycles = drive.cycles[wheel] * robot.gear_ratio
     for span in drive.spans():
         a, b = span
@@ -103,26 +103,37 @@ def motor_wheel(
                 tone = np.sin(np.float32(2.0 * np.pi * k) * shaft + np.float32(ph))
                 drive.add_ramped(out[a:b], tone, gate * tone_env, span)
         kernels.motor_mix(
-            out[a:b], drive.boundaries(shaft_cycles, span), table, drive.boundaries(tone_env, span),
-            brush_mod, brush_noise[a:b], drive.boundaries(brush_env, span), carrier_or_none[a:b], side,
-            drive.boundaries(pwm_env, span), BLOCK,
+            out[a:b], drive.boundaries(shaft_cycles, span), table, modulations,
+            drive.boundaries(tone_env, span), brush_noise[a:b], drive.boundaries(brush_env, span),
+            carrier_or_none[a:b], drive.boundaries(pwm_env, span), BLOCK,
         )  # fmt: skip
     return out
 
 
 _SILENT = np.zeros(0, dtype=np.float32)
-_FLAT = np.ones(TABLE_SIZE, dtype=np.float32)
 
 
 @functools.lru_cache(maxsize=16)
-def _modulations(pole_pairs: int) -> tuple[np.ndarray, np.ndarray]:
-    """(brush, PWM sideband) modulations as functions of the shaft phase (TABLE_SIZE points, read with the
-    tones' table index): brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution);
-    the PWM sidebands sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution)."""
+def _modulations(pole_pairs: int, sidebands: bool) -> np.ndarray:
+    """(P, 2) float32 (brush, PWM sideband) modulations as functions of the shaft phase, read-only, for
+    `kernels.motor_mix`: brush noise pulses at the commutation rate (2 x pole pairs per shaft revolution);
+    the PWM sidebands sit at carrier +- 2 x the electrical frequency (pole pairs per shaft revolution), a
+    flat 1 without sidebands. Defined on the tones' TABLE_SIZE points and read with their index, they repeat
+    every P = TABLE_SIZE / gcd(TABLE_SIZE, 2 x pole pairs) points, so one period is kept (the whole table
+    where the float32 values do not repeat exactly): the same samples from a table that stays in cache."""
     x = np.arange(TABLE_SIZE) / TABLE_SIZE
-    brush = (1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * pole_pairs * x)).astype(np.float32)
-    side = (1.0 + 0.5 * np.cos(4.0 * np.pi * pole_pairs * x)).astype(np.float32)
-    return brush, side
+    full = np.ones((TABLE_SIZE, 2), dtype=np.float32)
+    full[:, 0] = 1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * pole_pairs * x)
+    if sidebands:
+        full[:, 1] = 1.0 + 0.5 * np.cos(4.0 * np.pi * pole_pairs * x)
+    period = TABLE_SIZE // math.gcd(TABLE_SIZE, 2 * pole_pairs)
+    if not np.array_equal(
+        full.reshape(-1, period, 2), np.broadcast_to(full[:period], (TABLE_SIZE // period, period, 2))
+    ):
+        period = TABLE_SIZE
+    out = np.ascontiguousarray(full[:period])
+    out.setflags(write=False)
+    return out
 
 
 def pwm_carrier(drive: Drive, phase: float) -> np.ndarray | None:

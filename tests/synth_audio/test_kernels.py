@@ -128,9 +128,9 @@ def test_the_table_kernels_read_their_table_at_the_nearest_point_of_the_ramped_p
     rolled = np.zeros(n, dtype=np.float32)
     kernels.rolling_mix(rolled, np.zeros(n, dtype=np.float32), ones, cycles, points, ones, 64)
     motor = np.zeros(n, dtype=np.float32)
-    zero, silent = np.zeros(4096, np.float32), np.zeros(0, np.float32)
+    zero, silent = np.zeros((4096, 2), np.float32), np.zeros(0, np.float32)
     no_noise = np.zeros(n, np.float32)
-    kernels.motor_mix(motor, cycles, points, ones, zero, no_noise, ones, silent, zero, ones, 64)
+    kernels.motor_mix(motor, cycles, points, zero, ones, no_noise, ones, silent, ones, 64)
     for got in (rolled, motor):
         gap = np.abs(got.astype(np.int64) - expected)
         assert np.all(np.minimum(gap, 4096 - gap) <= 1)  # float64 against float32 phases: one point at most
@@ -148,9 +148,46 @@ def test_the_mix_kernels_ramp_every_envelope_linearly_within_its_block() -> None
     kernels.rolling_mix(rolled, noise, env[0], np.zeros(11), np.zeros(0, np.float32), env[1], block)
     assert np.allclose(rolled, noise * ramp[0], atol=1e-5)  # no table: the noise alone
     motor = np.zeros(n, dtype=np.float32)
-    flat = np.ones(64, dtype=np.float32)
-    kernels.motor_mix(motor, np.zeros(11), flat, env[0], flat, noise, env[1], carrier, flat, env[2], block)
+    flat, flat2 = np.ones(64, dtype=np.float32), np.ones((16, 2), dtype=np.float32)
+    kernels.motor_mix(motor, np.zeros(11), flat, flat2, env[0], noise, env[1], carrier, env[2], block)
     assert np.allclose(motor, ramp[0] + noise * ramp[1] + carrier * ramp[2], atol=1e-5)
+    quiet = np.zeros(n, dtype=np.float32)  # no carrier: the tone and the brush noise only
+    kernels.motor_mix(
+        quiet, np.zeros(11), flat, flat2, env[0], noise, env[1], np.zeros(0, np.float32), env[2], block
+    )
+    assert np.allclose(quiet, ramp[0] + noise * ramp[1], atol=1e-5)
+
+
+def test_the_motor_kernel_reads_its_modulations_at_the_tone_index_modulo_their_period() -> None:
+    rng = np.random.default_rng(6)
+    cycles = np.cumsum(rng.uniform(0.0, 0.9, 41))
+    n, ones = 40 * 64, np.ones(41)
+    full = rng.uniform(0.5, 1.5, (4096, 2)).astype(np.float32)
+    full[1024:] = np.tile(full[:1024], (3, 1))  # a period of 1024 points
+    noise, carrier = (rng.standard_normal(n).astype(np.float32) for _ in range(2))
+    tone = rng.standard_normal(4096).astype(np.float32)
+    whole, period = np.zeros(n, np.float32), np.zeros(n, np.float32)
+    kernels.motor_mix(whole, cycles, tone, full, ones, noise, ones, carrier, ones, 64)
+    kernels.motor_mix(
+        period, cycles, tone, np.ascontiguousarray(full[:1024]), ones, noise, ones, carrier, ones, 64
+    )
+    assert np.array_equal(whole, period)
+
+
+@pytest.mark.parametrize("pole_pairs", [3, 4, 5])
+def test_the_motor_modulations_hold_one_period_of_the_functions_on_the_tone_table(pole_pairs: int) -> None:
+    from synth_audio.dsp import TABLE_SIZE
+    from synth_audio.motor import _modulations
+
+    x = np.arange(TABLE_SIZE) / TABLE_SIZE
+    brush = (1.0 + 0.4 * np.cos(2.0 * np.pi * 2 * pole_pairs * x)).astype(np.float32)
+    side = (1.0 + 0.5 * np.cos(4.0 * np.pi * pole_pairs * x)).astype(np.float32)
+    for sidebands in (False, True):
+        table = _modulations(pole_pairs, sidebands)
+        rows = table[np.arange(TABLE_SIZE) & (table.shape[0] - 1)]
+        assert TABLE_SIZE % table.shape[0] == 0 and table.shape[0] < TABLE_SIZE
+        assert np.array_equal(rows[:, 0], brush)
+        assert np.array_equal(rows[:, 1], side if sidebands else np.ones(TABLE_SIZE, np.float32))
 
 
 @pytest.mark.parametrize("cosine", [False, True])

@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 import sim
 import synth_audio
+from benchmarks.allocator import keep_freed_memory
 from benchmarks.episode import (
     AUDIO_FILE,
     EPISODE_FILES,
@@ -243,8 +244,10 @@ def build_episode(spec: EpisodeSpec, directory: Path) -> Path:
     """Simulate, render and write one episode folder (runs in a worker process); idempotent.
 
     The folder is written beside its place and renamed into it, replacing a copy an earlier attempt of the
-    same task left (the same spec always gives the same bytes), so a retried task is harmless.
+    same task left (the same spec always gives the same bytes), so a retried task is harmless. The process
+    keeps the memory its episodes free for the next (`allocator.keep_freed_memory`).
     """
+    keep_freed_memory()
     scenario = sim.draw_scenario(spec.seed, spec.category, spec.options)
     scenario = scale_speeds(scenario, spec.drive_speed_scale, spec.approach_speed_scale)
     # Render what the file keeps, so that the audit's re-render from trace.npz reproduces this audio exactly.

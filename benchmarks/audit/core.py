@@ -53,6 +53,7 @@ import numpy as np
 from tqdm import tqdm
 
 import synth_audio
+from benchmarks.allocator import keep_freed_memory
 from benchmarks.audit import oracle, signals
 from benchmarks.audit.report import (
     BEHAVIOUR_LIMIT,
@@ -352,8 +353,11 @@ class _References:
 
 
 def run_audit(dataset: Path, *, progress: bool = True) -> AuditResult:
-    """Every probe on a dataset's test windows (the dataset is verified first)."""
+    """Every probe on a dataset's test windows (the dataset is verified first). The audit re-simulates and
+    re-renders episodes as `generate` does, and keeps the memory they free as it does
+    (`allocator.keep_freed_memory`)."""
     started = time.perf_counter()
+    keep_freed_memory()
     data = open_dataset(Path(dataset))
     simulated = data.source != IMPORTED
     has_imu = "imu" in data.modalities

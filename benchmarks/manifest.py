@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 8
+DATASET_FORMAT_VERSION = 9
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -54,8 +54,12 @@ than under format 6, which stays readable.
 components (`synth_audio.reverb`) and the audio's sums of squares by a compiled loop
 (`synth_audio.kernels.sum_squares`), equal to format 7's sums to float32 rounding: a seed makes other bytes
 than under format 7, which stays readable.
+9: the same layout and the same signals; the audio's 16-bit dither takes one 32-bit random integer per
+sample (`synth_audio.io.quantise`), FLAC files are encoded at FLAC's level 0 (`synth_audio.io.FLAC_LEVEL`)
+and the `.npz` members that barely compress are stored uncompressed (`sim.trace_storage.write_npz`): a seed
+makes other bytes than under format 8 (its audio differs in the dither alone), which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

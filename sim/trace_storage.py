@@ -23,6 +23,7 @@ machine.
 from __future__ import annotations
 
 import zipfile
+import zlib
 from collections.abc import Mapping
 from typing import BinaryIO
 
@@ -183,16 +184,37 @@ def _mic_pos(arrays: dict[str, np.ndarray], body: np.ndarray) -> np.ndarray:
 
 
 NPZ_LEVEL = 1
-"""zlib level of the `.npz` files `write_npz` writes. The stored signals are float32 samples whose low
+"""zlib level of the `.npz` members `write_npz` compresses. The stored signals are float32 samples whose low
 mantissa bits are noise to zlib, which the higher levels search in vain: level 1 makes files nearly as small
 as numpy's default level 6, in less time."""
 
+STORE_RATIO = 0.9
+"""A member whose first `PROBE_BYTES` compress to more than this fraction of their size is stored
+uncompressed: the signals of accelerations, rates and torques are noise to zlib in all but their exponent
+bits (they shrink by 4-9 %), and compressing them took most of an episode's `.npz` time."""
+
+PROBE_BYTES = 1 << 14
+"""Bytes of a member's data that `write_npz` compresses to decide how to store it."""
+
+
+def _deflates(value: np.ndarray) -> bool:
+    """Whether the array's first `PROBE_BYTES` compress (zlib, `NPZ_LEVEL`) to at most `STORE_RATIO` of
+    their size; decided by the array's bytes alone, so the same arrays give the same files."""
+    raw = np.ascontiguousarray(value).reshape(-1).view(np.uint8)[:PROBE_BYTES]
+    if raw.size == 0:
+        return True
+    return len(zlib.compress(raw.tobytes(), NPZ_LEVEL)) <= STORE_RATIO * raw.size
+
 
 def write_npz(handle: BinaryIO, arrays: Mapping[str, np.ndarray]) -> None:
-    """Write `arrays` to an open binary file as a compressed `.npz` that `numpy.load` reads: numpy's
-    `savez_compressed` layout (one `<name>.npy` member per array, zip64, the members' fixed 1980 date, so the
-    same arrays give the same bytes) at zlib level `NPZ_LEVEL`."""
+    """Write `arrays` to an open binary file as an `.npz` that `numpy.load` reads: numpy's `savez_compressed`
+    layout (one `<name>.npy` member per array, zip64, the members' fixed 1980 date, so the same arrays give
+    the same bytes), each member deflated at zlib level `NPZ_LEVEL` or, where its data barely compresses
+    (`_deflates`), stored."""
     with zipfile.ZipFile(handle, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=NPZ_LEVEL) as archive:
         for name, value in arrays.items():
+            array = np.asanyarray(value)
+            # a member takes the archive's compression when it is opened
+            archive.compression = zipfile.ZIP_DEFLATED if _deflates(array) else zipfile.ZIP_STORED
             with archive.open(name + ".npy", "w", force_zip64=True) as member:
-                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+                np.lib.format.write_array(member, array, allow_pickle=False)

@@ -465,3 +465,21 @@ def sum_squares(x: np.ndarray) -> float:  # pragma: no cover - compiled
         v = np.float64(x[i])
         rest += v * v
     return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + rest
+
+
+@njit(cache=True, nogil=True)
+def tpdf_quantise(
+    x: np.ndarray, random: np.ndarray, scale: float, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """out[i, c] = floor(x[i, c] scale + d + 1/2) clipped to [-scale, scale - 1], d = (hi - lo) / 2^16
+    where hi and lo are the high and low 16 bits of random[i, c] (uint32): the difference of two independent
+    uniform draws, a triangular dither over +-1 step (in steps of 2^-16). x is (n, C) float32 or float64,
+    out (n, C) integers; the arithmetic in float64."""
+    lowest = -scale
+    highest = scale - 1.0
+    for i in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            r = np.int64(random[i, c])
+            d = np.float64((r >> 16) - (r & 0xFFFF)) * (1.0 / 65536.0)
+            y = math.floor(np.float64(x[i, c]) * scale + d + 0.5)
+            out[i, c] = min(max(y, lowest), highest)

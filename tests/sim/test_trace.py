@@ -126,6 +126,32 @@ def test_load_gives_exactly_the_trace_at_storage_precision(simulated: Trace, tmp
     assert simulated.save(tmp_path / "c.npz").read_bytes() == again.read_bytes()
 
 
+def test_members_that_barely_compress_are_stored_and_the_rest_deflated(tmp_path: Path) -> None:
+    """`write_npz` deflates a member unless zlib shrinks its first bytes by less than 1 - STORE_RATIO; numpy
+    reads both kinds back exactly."""
+    rng = np.random.default_rng(3)
+    arrays = {
+        "noise": rng.standard_normal(20000).astype(np.float32),  # random mantissas: barely compress
+        "steps": np.repeat(np.arange(50, dtype=np.float32), 400),  # long runs: compress well
+        "empty": np.zeros(0),
+        "labels": np.array(["a", "bb"]),
+    }
+    path = tmp_path / "m.npz"
+    with path.open("wb") as handle:
+        trace_storage.write_npz(handle, arrays)
+    with zipfile.ZipFile(path) as archive:
+        kinds = {info.filename: info.compress_type for info in archive.infolist()}
+        noise = archive.getinfo("noise.npy")
+        assert noise.compress_type == zipfile.ZIP_STORED and noise.compress_size >= noise.file_size
+        steps = archive.getinfo("steps.npy")
+        assert steps.compress_type == zipfile.ZIP_DEFLATED and steps.compress_size < 0.1 * steps.file_size
+    assert kinds["empty.npy"] == zipfile.ZIP_DEFLATED
+    with np.load(path) as data:
+        for name, value in arrays.items():
+            np.testing.assert_array_equal(data[name], value)
+            assert data[name].dtype == value.dtype
+
+
 def test_a_format_1_file_is_read_bit_for_bit(simulated: Trace, tmp_path: Path) -> None:
     """Format 1 (every array as simulated, float64): datasets written before format 2 still open."""
     arrays = _flatten(simulated)

@@ -3,8 +3,8 @@
 An episode allocates and frees arrays of tens of MB (a minute of stereo float32 is 21 MB) over and over.
 glibc's malloc serves blocks above its mmap threshold (128 kB at start, raised on each free up to 32 MB) from
 fresh mappings and returns heap memory beyond its trim threshold to the kernel, so those arrays come back as
-new pages, each zeroed by the kernel on its first write (a page fault per 4 kB): a tenth of the time of a
-minute-long episode. With the threshold fixed at `MMAP_THRESHOLD` and trimming only beyond
+new pages, each zeroed by the kernel on its first write (a page fault per page), a real share of a
+minute-long episode's time. With the threshold fixed at `MMAP_THRESHOLD` and trimming only beyond
 `TRIM_THRESHOLD`, freed blocks are reused: the process's peak memory is the same (the episode's peak), and
 it keeps it. Other C libraries (and other systems) are left as they are: the setting changes speed only,
 never what is computed.

@@ -191,7 +191,7 @@ as numpy's default level 6, in less time."""
 STORE_RATIO = 0.9
 """A member whose first `PROBE_BYTES` compress to more than this fraction of their size is stored
 uncompressed: the signals of accelerations, rates and torques are noise to zlib in all but their exponent
-bits (they shrink by 4-9 %), and compressing them took most of an episode's `.npz` time."""
+bits, so compressing them costs most of an episode's `.npz` time and saves few bytes."""
 
 PROBE_BYTES = 1 << 14
 """Bytes of a member's data that `write_npz` compresses to decide how to store it."""

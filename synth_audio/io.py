@@ -28,10 +28,10 @@ FLAC_BITS: tuple[int, ...] = tuple(range(16, 25))
 
 FLAC_LEVEL = 0.0
 """libsndfile's FLAC compression level (0..1 for FLAC's levels 0..8; libsndfile's default is FLAC level 5).
-Rendered audio is noise to FLAC's predictors from the 16th bit down: level 0 encodes a minute in about
-two-thirds of level 5's time, in files about 4 % larger."""
+Rendered audio is noise to FLAC's predictors in its low bits, so the higher levels search longer for little:
+level 0 encodes faster, in slightly larger files."""
 _DITHER_CHUNK = 1 << 18
-"""Frames quantised at a time (bounds the float64 temporaries; part of the dither's definition)."""
+"""Frames quantised at a time (bounds the random draws held at once; part of the dither's definition)."""
 _DITHER_STREAM = 0xD17E
 """Mixed into the dither seed, so that the dither never repeats another generator seeded alike."""
 

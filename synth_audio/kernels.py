@@ -6,8 +6,9 @@ reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at mo
 (a Doppler path, `lagrange_read`), steady tones (`sinusoid_into`), banks of damped modes
 (`damped_modes_into`), weaving noise beds (`weave`), the limiter, which also interleaves the channels
 (`limit_interleave`), int16 noise to float32 (`scale_int16`), a scan for silence (`any_nonzero`), sums of
-squares (`sum_squares`), and the room's long FFTs regrouped into quarter-length ones (`twiddles_into`,
-`polyphase_combine`, `polyphase_spectra`, `interleave_phases`; see `synth_audio.reverb`). Each touches every
+squares (`sum_squares`), the room's long FFTs regrouped into quarter-length ones (`twiddles_into`,
+`polyphase_combine`, `polyphase_spectra`, `interleave_phases`; see `synth_audio.reverb`), and the dithered
+quantisation of a file's samples (`tpdf_quantise`). Each touches every
 output sample once. Loops index array slices from 0: an index that might be negative costs a
 wraparound test per sample, which stops LLVM vectorising the loop.
 

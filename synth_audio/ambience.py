@@ -58,9 +58,12 @@ def _diffuse(rng: np.random.Generator, n: int, pool: np.ndarray, coherence: floa
     (`dsp.noise_bed`), so the two channels have the given coherence and neither repeats.
     """
     own = np.float32(np.sqrt(1.0 - coherence))
-    out = np.stack([noise_bed(rng, n, pool), noise_bed(rng, n, pool)]) * own
+    out = np.stack([noise_bed(rng, n, pool), noise_bed(rng, n, pool)])
+    out *= own
     if coherence > 0:
-        out += noise_bed(rng, n, pool) * np.float32(np.sqrt(coherence))
+        shared = noise_bed(rng, n, pool)
+        shared *= np.float32(np.sqrt(coherence))
+        out += shared
     return out
 
 
@@ -134,7 +137,9 @@ def indoor(
     hum = np.zeros(n, dtype=np.float32)
     for freq, amp in ((mains * 2, 0.08), (mains * 3, 0.04), (blade, 0.12)):
         kernels.sinusoid_into(hum, rng.uniform(), freq / sr, amp, False)
-    dry = _diffuse(rng, n, fan, 0.3) * np.float32(0.6) + hum[None, :]
+    dry = _diffuse(rng, n, fan, 0.3)
+    dry *= np.float32(0.6)
+    dry += hum[None, :]
     low_sr = sr // decimation
     low_n = -(-n // decimation)
     send = _babble(low_n, low_sr, rng, int(rng.integers(2, 5))) * np.float32(0.6)

@@ -23,10 +23,14 @@ MODE_FLOOR_DB = 140.0
 """Decay after which `damped_modes` stops computing a mode, dB: float32 resolves 2^-24 (-144 dB) of a peak."""
 
 
-def white(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Unit-variance uniform white noise, float32 (fast: built from the generator's raw bytes)."""
+def white(rng: np.random.Generator, n: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Unit-variance uniform white noise, float32 (fast: built from the generator's raw bytes), written into
+    `out` ((n,) float32) when given."""
     raw = np.frombuffer(rng.bytes(2 * max(n, 0)), dtype=np.int16)
-    out = np.empty(raw.shape[0], dtype=np.float32)
+    if out is None:
+        out = np.empty(raw.shape[0], dtype=np.float32)
+    elif out.shape != raw.shape or out.dtype != np.float32:
+        raise ValueError(f"out must be ({raw.shape[0]},) float32, got {out.shape} {out.dtype}")
     kernels.scale_int16(raw, np.float32(1.0 / _INT16_STD), out)
     return out
 

@@ -60,10 +60,14 @@ def quantise(samples: np.ndarray, bits: int, dither_seed: int) -> np.ndarray:
     if x.dtype not in (np.float32, np.float64):
         x = x.astype(np.float64)
     out = np.empty(x.shape, dtype=np.int16 if bits == 16 else np.int32)
+    # the samples interleaved, as one row each (x is copied where it is not C-contiguous)
+    flat, flat_out = np.ascontiguousarray(x).reshape(-1), out.reshape(-1)
+    width = int(np.prod(x.shape[1:], dtype=np.int64))  # samples per frame
     for start in range(0, x.shape[0], _DITHER_CHUNK):
         chunk = x[start : start + _DITHER_CHUNK]
         random = rng.integers(0, 1 << 32, size=chunk.shape, dtype=np.uint32)
-        kernels.tpdf_quantise(chunk, random, scale, out[start : start + _DITHER_CHUNK])
+        part = slice(start * width, (start + chunk.shape[0]) * width)
+        kernels.tpdf_quantise(flat[part], random.reshape(-1), scale, flat_out[part])
     return out
 
 

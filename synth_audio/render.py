@@ -445,7 +445,9 @@ def _distant_sources(
 def _mic_noise(config: AudioConfig, seed: int, n: int) -> np.ndarray:
     """(2, n) microphone self-noise, independent per channel, at `mic_noise_dbfs`."""
     noise_rng = _rng(seed, "mic_noise")
-    noise = np.stack([white(noise_rng, n), white(noise_rng, n)])
+    noise = np.empty((2, n), dtype=np.float32)
+    for row in noise:
+        white(noise_rng, n, row)
     noise *= np.float32(10.0 ** (config.mic_noise_dbfs / 20.0))
     return noise
 

@@ -102,12 +102,18 @@ def test_weaving_adds_each_snippet_read_circularly_under_the_window() -> None:
     assert np.allclose(out, expected, atol=1e-6)
 
 
-def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monotonic_above() -> None:
-    unlimited = np.empty((2000, 3), dtype=np.float32)
-    kernels.limit_interleave(np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1), np.inf, unlimited)
-    assert np.array_equal(unlimited.T, np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1))
-    x = np.linspace(-3.0, 3.0, 6000, dtype=np.float32).reshape(3, -1)
-    out = np.empty((2000, 3), dtype=np.float32)
+@pytest.mark.parametrize("channels", [2, 3])
+def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monotonic_above(
+    channels: int,
+) -> None:
+    """Both of the kernel's interleaving loops (two channels, any number): identity below the knee, the tanh
+    law above it, NaN passed through."""
+    n = 6000 // channels
+    x = np.linspace(-3.0, 3.0, channels * n, dtype=np.float32).reshape(channels, -1)
+    unlimited = np.empty((n, channels), dtype=np.float32)
+    kernels.limit_interleave(x, np.inf, unlimited)
+    assert np.array_equal(unlimited.T, x)
+    out = np.empty((n, channels), dtype=np.float32)
     kernels.limit_interleave(x, 0.5, out)
     y = out.T
     below = np.abs(x) <= 0.5
@@ -115,6 +121,10 @@ def test_the_soft_limiter_is_the_identity_below_its_knee_and_bounded_and_monoton
     assert np.all(np.abs(y) < 1.0) and np.all(np.diff(y.ravel()) >= 0.0)
     assert np.array_equal(np.sign(y), np.sign(x))
     assert float(y.ravel()[-1]) == pytest.approx(0.5 + 0.5 * np.tanh(5.0), abs=1e-6)
+    quiet = x * np.float32(0.1)
+    quiet[0, 3] = np.nan
+    kernels.limit_interleave(quiet, 0.5, out)
+    assert np.array_equal(out.T, quiet, equal_nan=True)
 
 
 def test_the_table_kernels_read_their_table_at_the_nearest_point_of_the_ramped_phase() -> None:

@@ -208,14 +208,17 @@ def test_the_generate_stage_divides_by_a_reference_as_long_as_its_audio(
         lengths.append(n_samples)
         return next(values)
 
-    built: list[str] = []
-    monkeypatch.setattr(generate, "build_episode", lambda spec, root: built.append(spec.episode_id))
+    built: list[tuple[str, float]] = []
+    monkeypatch.setattr(
+        generate, "build_episode", lambda spec, root: built.append((spec.episode_id, spec.options.duration))
+    )
     monkeypatch.setattr(generate, "fft_reference_s", reference)
     monkeypatch.setattr(generate, "time", types.SimpleNamespace(perf_counter=_FakeTime(1.0).read))
     figures = generate.STAGE.measure(True)
     assert lengths == [3 * 10 * 44100] * 2
-    # the first episode is built before the timed ones and counts in its own figure, not in the rate
-    assert built == ["perf-first", "perf-nominal", "perf-collision", "perf-fault"]
+    # the first episode, as long as the timed ones, is built before them and counts in its own figure, not
+    # in the rate
+    assert built == [(name, 10.0) for name in ("perf-first", "perf-nominal", "perf-collision", "perf-fault")]
     assert figures["generate_first_episode_s"] == pytest.approx(1.0)
     assert figures["generate_vs_fft"] == pytest.approx(1.0 / 0.2)
     assert figures["generate_rtf"] == pytest.approx(30.0)

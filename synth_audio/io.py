@@ -60,7 +60,7 @@ def quantise(samples: np.ndarray, bits: int, dither_seed: int) -> np.ndarray:
     if x.dtype not in (np.float32, np.float64):
         x = x.astype(np.float64)
     out = np.empty(x.shape, dtype=np.int16 if bits == 16 else np.int32)
-    # the samples interleaved, as one row each (x is copied where it is not C-contiguous)
+    # every sample of every frame in one row, frame by frame (x is copied where it is not C-contiguous)
     flat, flat_out = np.ascontiguousarray(x).reshape(-1), out.reshape(-1)
     width = int(np.prod(x.shape[1:], dtype=np.int64))  # samples per frame
     for start in range(0, x.shape[0], _DITHER_CHUNK):

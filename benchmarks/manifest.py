@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 9
+DATASET_FORMAT_VERSION = 10
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -58,8 +58,12 @@ than under format 7, which stays readable.
 sample (`synth_audio.io.quantise`), FLAC files are encoded at FLAC's level 0 (`synth_audio.io.FLAC_LEVEL`)
 and the `.npz` members that barely compress are stored uncompressed (`sim.trace_storage.write_npz`): a seed
 makes other bytes than under format 8 (its audio differs in the dither alone), which stays readable.
+10: the same layout; the two-wheel robot's caster and anti-tip skid are frictionless, as its model says (they
+took the floor's friction, dragged and bounced), the dither is a hash of each sample's index and the sources'
+reverberation energy is summed from spectra: a seed makes other episodes than under format 9, which stays
+readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

@@ -36,6 +36,23 @@ def test_straight_driving_reaches_commanded_speed(model: str) -> None:
     np.testing.assert_allclose(rolling, speed.mean(), rtol=0.03)
 
 
+def test_diff2_rolls_steadily_on_its_frictionless_caster() -> None:
+    """On a flat floor at a constant command nothing forces a pitch: the rear ball caster touches without
+    friction (a contact of dimension 1), so the chassis neither pitches nor bounces (a caster that dragged
+    with the floor's friction bounced on it, the harder the longer the physics step)."""
+    trace = simulate(straight(duration=4.0, speed=1.0, model="diff2"))
+    late = trace.time > 2.0
+    assert np.abs(trace.base_angvel[late]).max() < 1e-3
+    assert np.ptp(trace.base_pos[late, 2]) < 1e-5
+    world = build_world(straight(model="diff2"))
+    m, d = world.model, mujoco.MjData(world.model)
+    caster = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "diff2/caster_back")
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+    dims = {int(c.dim) for c in d.contact[: d.ncon] if caster in (c.geom1, c.geom2)}
+    assert dims == {1}
+
+
 def test_diff2_yaw_rate_matches_differential_drive_kinematics() -> None:
     scenario = straight(model="diff2")
     engine, out = _constant_drive(scenario, 0.4, 0.6, 4.0)

@@ -8,7 +8,7 @@ import zlib
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.signal import butter, lfilter
+from scipy.signal import butter
 
 from synth_audio import kernels
 
@@ -291,7 +291,9 @@ def _bandpass_sos(low_hz: float, high_hz: float, sample_rate: float) -> np.ndarr
 def one_pole_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate: float) -> np.ndarray:
     """First-order low-pass (cheap, for short segments)."""
     a = float(np.exp(-2.0 * np.pi * cutoff_hz / sample_rate))
-    return lfilter([1.0 - a], [1.0, -a], x).astype(np.float32)
+    out = np.empty(np.shape(x), dtype=np.float32)
+    kernels.two_pole_into(np.asarray(x), 1.0 - a, -a, 0.0, out)
+    return out
 
 
 def resonate(x: np.ndarray, freq_hz: float, damping_ratio: float, sample_rate: int) -> np.ndarray:
@@ -299,4 +301,6 @@ def resonate(x: np.ndarray, freq_hz: float, damping_ratio: float, sample_rate: i
     f = float(np.clip(freq_hz, 10.0, 0.45 * sample_rate))
     r = float(np.exp(-2.0 * np.pi * f * damping_ratio / sample_rate))
     w = 2.0 * np.pi * f / sample_rate
-    return lfilter([1.0 - r], [1.0, -2.0 * r * np.cos(w), r * r], x).astype(np.float32)
+    out = np.empty(np.shape(x), dtype=np.float32)
+    kernels.two_pole_into(np.asarray(x), 1.0 - r, -2.0 * r * math.cos(w), r * r, out)
+    return out

@@ -30,8 +30,6 @@ FLAC_LEVEL = 0.0
 """libsndfile's FLAC compression level (0..1 for FLAC's levels 0..8; libsndfile's default is FLAC level 5).
 Rendered audio is noise to FLAC's predictors in its low bits, so the higher levels search longer for little:
 level 0 encodes faster, in slightly larger files."""
-_DITHER_CHUNK = 1 << 18
-"""Frames quantised at a time (bounds the random draws held at once; part of the dither's definition)."""
 _DITHER_STREAM = 0xD17E
 """Mixed into the dither seed, so that the dither never repeats another generator seeded alike."""
 
@@ -47,27 +45,21 @@ def quantise(samples: np.ndarray, bits: int, dither_seed: int) -> np.ndarray:
     """(n, c) samples (full scale = 1) -> integers of `bits` bits with TPDF dither, deterministically.
 
     Each sample becomes floor(x 2^(bits-1) + u1 - u2 + 1/2), clipped to the integer range, where u1 and u2
-    are uniform on {0, 1/2^16, ..., 1 - 1/2^16}: the two halves of one 32-bit integer drawn per sample from a
-    generator seeded by `dither_seed` (`kernels.tpdf_quantise`). The dither is triangular over +-1 step,
-    which makes the error's mean and variance independent of the signal. Returns int16 for 16 bits, int32
-    otherwise.
+    are uniform on {0, 1/2^16, ..., 1 - 1/2^16}: the two halves of a 32-bit hash of the sample's index in
+    the interleaved file and a key drawn from a generator seeded by `dither_seed` (`kernels.tpdf_quantise`).
+    The dither is triangular over +-1 step, which makes the error's mean and variance independent of the
+    signal. Returns int16 for 16 bits, int32 otherwise.
     """
     if bits not in FLAC_BITS:
         raise AudioError(f"bits = {bits} is invalid; allowed: {FLAC_BITS[0]}..{FLAC_BITS[-1]}")
     scale = float(2 ** (bits - 1))
-    rng = np.random.default_rng([int(dither_seed), _DITHER_STREAM])
+    key = int(np.random.default_rng([int(dither_seed), _DITHER_STREAM]).integers(0, 1 << 32))
     x = np.asarray(samples)
     if x.dtype not in (np.float32, np.float64):
         x = x.astype(np.float64)
     out = np.empty(x.shape, dtype=np.int16 if bits == 16 else np.int32)
     # every sample of every frame in one row, frame by frame (x is copied where it is not C-contiguous)
-    flat, flat_out = np.ascontiguousarray(x).reshape(-1), out.reshape(-1)
-    width = int(np.prod(x.shape[1:], dtype=np.int64))  # samples per frame
-    for start in range(0, x.shape[0], _DITHER_CHUNK):
-        chunk = x[start : start + _DITHER_CHUNK]
-        random = rng.integers(0, 1 << 32, size=chunk.shape, dtype=np.uint32)
-        part = slice(start * width, (start + chunk.shape[0]) * width)
-        kernels.tpdf_quantise(flat[part], random.reshape(-1), scale, flat_out[part])
+    kernels.tpdf_quantise(np.ascontiguousarray(x).reshape(-1), key, scale, out.reshape(-1))
     return out
 
 

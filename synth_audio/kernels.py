@@ -5,10 +5,10 @@ scattering copies of a kernel (`overlap_add_into`), a fixed fractional delay (`f
 reading a wavetable at a ramped phase (`wavetable_read`), reading a signal at moving fractional positions
 (a Doppler path, `lagrange_read`), steady tones (`sinusoid_into`), banks of damped modes
 (`damped_modes_into`), weaving noise beds (`weave`), the limiter, which also interleaves the channels
-(`limit_interleave`), int16 noise to float32 (`scale_int16`), a scan for silence (`any_nonzero`), sums of
-squares (`sum_squares`), the room's long FFTs regrouped into quarter-length ones (`twiddles_into`,
-`polyphase_combine`, `polyphase_spectra`, `interleave_phases`; see `synth_audio.reverb`), and the dithered
-quantisation of a file's samples (`tpdf_quantise`). Each touches every
+(`limit_interleave`), one- and two-pole filters (`two_pole_into`), int16 noise to float32 (`scale_int16`),
+a scan for silence (`any_nonzero`), sums of squares (`sum_squares`), the room's long FFTs regrouped into
+quarter-length ones (`twiddles_into`, `polyphase_combine`, `polyphase_spectra`, `interleave_phases`; see
+`synth_audio.reverb`), and the dithered quantisation of a file's samples (`tpdf_quantise`). Each touches every
 output sample once. Loops index array slices from 0: an index that might be negative costs a
 wraparound test per sample, which stops LLVM vectorising the loop.
 
@@ -488,18 +488,54 @@ def sum_squares(x: np.ndarray) -> float:  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def two_pole_into(
+    x: np.ndarray, b0: float, a1: float, a2: float, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """out = the recursive filter y[n] = b0 x[n] - a1 y[n-1] - a2 y[n-2] of x from rest (1-D), in float64,
+    stored as out's dtype: `scipy.signal.lfilter([b0], [1, a1, a2], x)` in its own order of operations (its
+    transposed direct form II), without its per-call cost; a2 = 0 is a one-pole filter."""
+    z1 = 0.0
+    z2 = 0.0
+    for i in range(x.shape[0]):
+        v = np.float64(x[i])
+        y = z1 + v * b0
+        z1 = z2 - y * a1
+        z2 = -(y * a2)
+        out[i] = y
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lowbias32(h: np.uint64) -> np.uint64:  # pragma: no cover - compiled
+    """A 32-bit integer hash, `lowbias32` (C. Wellons' integer hash prospector): each input bit flips each
+    output bit with probability close to 1/2; h < 2^32, held in 64 bits (the products stay exact)."""
+    h ^= h >> np.uint64(16)
+    h = (h * np.uint64(0x7FEB352D)) & np.uint64(0xFFFFFFFF)
+    h ^= h >> np.uint64(15)
+    h = (h * np.uint64(0x846CA68B)) & np.uint64(0xFFFFFFFF)
+    h ^= h >> np.uint64(16)
+    return h
+
+
+@njit(cache=True, nogil=True)
 def tpdf_quantise(
-    x: np.ndarray, random: np.ndarray, scale: float, out: np.ndarray
+    x: np.ndarray, key: int, scale: float, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled
     """out[i] = floor(x[i] scale + d + 1/2) clipped to [-scale, scale - 1], d = (hi - lo) / 2^16 where hi and
-    lo are the high and low 16 bits of random[i] (uint32): the difference of two independent uniform draws,
-    a triangular dither over +-1 step (in steps of 2^-16). x, random and out are 1-D (a file's interleaved
-    samples, flattened: one loop, which LLVM vectorises, where a loop per channel did not); x float32 or
+    lo are the high and low 16 bits of r = lowbias32(i xor k): the difference of two uniform draws, a
+    triangular dither over +-1 step (in steps of 2^-16), from a hash of the sample's index, so no random
+    numbers are drawn or stored. k = lowbias32(key + i // 2^32) (key < 2^32), one per 2^32 samples. x and out
+    are 1-D (a file's interleaved samples, flattened: one loop, which LLVM vectorises); x float32 or
     float64, out integers; the arithmetic in float64."""
     lowest = -scale
     highest = scale - 1.0
-    for i in range(x.shape[0]):
-        r = np.int64(random[i])
-        d = np.float64((r >> 16) - (r & 0xFFFF)) * (1.0 / 65536.0)
-        y = math.floor(np.float64(x[i]) * scale + d + 0.5)
-        out[i] = min(max(y, lowest), highest)
+    n = x.shape[0]
+    span = np.int64(1) << np.int64(32)
+    for block in range(0, n, span):
+        k = _lowbias32((np.uint64(key) + np.uint64(block >> 32)) & np.uint64(0xFFFFFFFF))
+        xs = x[block : min(n, block + span)]
+        os = out[block : min(n, block + span)]
+        for i in range(xs.shape[0]):
+            r = _lowbias32(np.uint64(i) ^ k)
+            d = np.float64(np.int64(r >> np.uint64(16)) - np.int64(r & np.uint64(0xFFFF))) * (1.0 / 65536.0)
+            y = math.floor(np.float64(xs[i]) * scale + d + 0.5)
+            os[i] = min(max(y, lowest), highest)

@@ -42,6 +42,18 @@ def test_stored_audio_is_the_dithered_signal_within_one_and_a_half_steps(
     assert abs(np.corrcoef(error[:, 0], signal.samples[:, 0])[0, 1]) < 0.01
 
 
+def test_the_dither_is_white_across_samples_and_channels(signal: Audio) -> None:
+    """The dither comes from a hash of each sample's index: the errors of neighbouring samples and of the
+    two channels are uncorrelated (|r| within 4 standard errors of 0 over 176 400 samples)."""
+    x = signal.samples[2:].astype(np.float64)  # not the full-scale frames, which clip
+    error = quantise(x, 16, 11) - x * 2.0**15
+    flat = error.reshape(-1)  # the file's interleaved order
+    limit = 4.0 / np.sqrt(flat.size)
+    for lag in (1, 2, 3, 4):
+        assert abs(np.corrcoef(flat[:-lag], flat[lag:])[0, 1]) < limit
+    assert abs(np.corrcoef(error[:, 0], error[:, 1])[0, 1]) < 4.0 / np.sqrt(error.shape[0])
+
+
 def test_the_dither_is_deterministic_and_seeded(signal: Audio, tmp_path: Path) -> None:
     first = write(tmp_path / "a.flac", signal, bits=16, dither_seed=3).read_bytes()
     assert write(tmp_path / "b.flac", signal, bits=16, dither_seed=3).read_bytes() == first

@@ -1,14 +1,15 @@
 """The compiled loops against what they compute: scatter-adds by numpy's `add.at`, a fractional delay by its
 Lagrange taps and a sine's phase, a Doppler read by a polynomial that third-order Lagrange interpolates
-exactly."""
+exactly, the one- and two-pole filters by scipy's `lfilter`."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from synth_audio import kernels
-from synth_audio.dsp import delay_into, fractional_taps, overlap_add_into
+from synth_audio.dsp import delay_into, fractional_taps, one_pole_lowpass, overlap_add_into, resonate
 
 
 def test_overlap_add_is_every_copy_of_the_kernel_clipped_to_the_signal() -> None:
@@ -264,3 +265,21 @@ def test_twiddles_are_the_complex_exponentials_to_float32_rounding() -> None:
     kernels.twiddles_into(length, out)
     exact = np.exp(-2j * np.pi * np.arange(d)[:, None] * np.arange(m)[None, :] / length)
     assert np.max(np.abs(out - exact)) < 1e-7
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_filters_are_scipys_lfilter_sample_for_sample(dtype: type) -> None:
+    """The compiled recursions run lfilter's transposed direct form in its order of operations: the same
+    float64 samples, rounded to float32 alike."""
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal(20000).astype(dtype)
+    x[100:110] = 0.0  # zeros inside the signal
+    a = float(np.exp(-2.0 * np.pi * 900.0 / 44100.0))
+    expected = lfilter([1.0 - a], [1.0, -a], x).astype(np.float32)
+    np.testing.assert_array_equal(one_pole_lowpass(x, 900.0, 44100.0), expected)
+    f, zeta = 700.0, 0.05
+    r = float(np.exp(-2.0 * np.pi * f * zeta / 44100.0))
+    w = 2.0 * np.pi * f / 44100.0
+    expected = lfilter([1.0 - r], [1.0, -2.0 * r * np.cos(w), r * r], x).astype(np.float32)
+    np.testing.assert_array_equal(resonate(x, f, zeta, 44100), expected)
+    assert one_pole_lowpass(x[:0], 900.0, 44100.0).shape == (0,)

@@ -524,8 +524,8 @@ def tpdf_quantise(
     lo are the high and low 16 bits of r = lowbias32(i xor k): the difference of two uniform draws, a
     triangular dither over +-1 step (in steps of 2^-16), from a hash of the sample's index, so no random
     numbers are drawn or stored. k = lowbias32(key + i // 2^32) (key < 2^32), one per 2^32 samples. x and out
-    are 1-D (a file's interleaved samples, flattened: one loop, which LLVM vectorises); x float32 or
-    float64, out integers; the arithmetic in float64."""
+    are 1-D (a file's interleaved samples, flattened: one loop); x float32 or float64, out integers; the
+    arithmetic in float64."""
     lowest = -scale
     highest = scale - 1.0
     n = x.shape[0]

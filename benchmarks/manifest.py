@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 10
+DATASET_FORMAT_VERSION = 11
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -62,8 +62,12 @@ makes other bytes than under format 8 (its audio differs in the dither alone), w
 took the floor's friction, dragged and bounced), the dither is a hash of each sample's index and the sources'
 reverberation energy is summed from spectra: a seed makes other episodes than under format 9, which stays
 readable.
+11: the same layout; the physics steps at 5 ms (`sim.world.PHYSICS_DT`, one step per IMU sample, where it
+stepped twice) and the route controller commands at 12.5 Hz (`sim.engine.CONTROL_STEPS`, where it commanded
+at 25 Hz), with the solver warm-started across control periods (`sim.stepper`): a seed makes other episodes
+than under format 10, which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10, 11)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

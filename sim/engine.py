@@ -1,9 +1,9 @@
 """The stepping core shared by `simulate`, the Gymnasium and the dm_env environments.
 
-Physics runs in control periods of `CONTROL_STEPS` steps through `mujoco.rollout` (C loop, no per-step
-Python), which also records MuJoCo's sensors at every physics step. Per period, Python computes the
-wheel speed commands, the faults' forces for every step of the period (vectorised) and the
-pedestrians' mocap positions, and hands them to the rollout as open-loop controls.
+Physics runs in control periods of `CONTROL_STEPS` steps through `sim.stepper` (a compiled `mj_step` loop,
+no per-step Python), which also records MuJoCo's sensors at every physics step. Per period, Python computes
+the wheel speed commands, the faults' forces for every step of the period (vectorised) and the pedestrians'
+mocap positions, and hands them to the stepper as open-loop controls.
 """
 
 from __future__ import annotations
@@ -12,14 +12,16 @@ import math
 
 import mujoco
 import numpy as np
-from mujoco import rollout as mj_rollout
 
 from sim.faults import FaultForcing, make_forcings
 from sim.scenario import Obstacle, Scenario
+from sim.stepper import CONTROL_SPEC, Stepper
 from sim.world import World
 
 CONTROL_STEPS = 16
-"""Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
+"""Physics steps per control period (16 x 5 ms = 80 ms, a 12.5 Hz velocity command, within the 10-20 Hz
+at which mobile robots' local planners command theirs (Nav2's controller server: 20 Hz by default); the
+wheels' velocity servos act at every physics step)."""
 
 SKID_TRACK_FACTOR = 2.0
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
@@ -28,14 +30,6 @@ STEP_BACK = 0.4
 """How far a pedestrian the robot bumps into steps back, away from the robot, m."""
 STEP_BACK_TIME = 0.5
 """How long the step back takes, s (then the pedestrian stands)."""
-
-_CONTROL_SPEC = int(
-    mujoco.mjtState.mjSTATE_CTRL
-    | mujoco.mjtState.mjSTATE_QFRC_APPLIED
-    | mujoco.mjtState.mjSTATE_XFRC_APPLIED
-    | mujoco.mjtState.mjSTATE_MOCAP_POS
-)
-_STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 
 def pedestrian_positions(obstacles: tuple[Obstacle, ...], times: np.ndarray) -> np.ndarray:
@@ -71,18 +65,15 @@ class Engine:
         self.model = m
         self.data = mujoco.MjData(m)
         self.dt = float(m.opt.timestep)
-        self.nstate = mujoco.mj_stateSize(m, _STATE_SPEC)
-        self.ncontrol = mujoco.mj_stateSize(m, _CONTROL_SPEC)
+        self.ncontrol = mujoco.mj_stateSize(m, int(CONTROL_SPEC))
         self._qfrc0 = m.nu
         self._xfrc0 = m.nu + m.nv
         self._mocap0 = m.nu + m.nv + 6 * m.nbody
         self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
         self._steps = self.dt * np.arange(CONTROL_STEPS)  # step offsets in a period, s
         self._wheel_control = self._control[0, :, : m.nu]
-        self._runner = mj_rollout.Rollout(nthread=0)
-        self._models = [m]
+        self._stepper = Stepper(m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)))
         self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
-        self._datas = [self.data]
         self._ped_track = np.zeros((0, 0, 3))
         self._stepped_back: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
         info = world.robot.info
@@ -104,8 +95,6 @@ class Engine:
             else np.zeros(0, np.int64)
         )
         self._has_peds = len(self.ped_index) > 0
-        self.state = np.zeros(self.nstate)
-        self._state0 = self.state[None]  # the rollout's (1, nstate) initial state: a view of `state`
         self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
         self.reset()
@@ -115,7 +104,6 @@ class Engine:
         mujoco.mj_resetData(self.model, self.data)
         self._set_mocap(self.data.mocap_pos, np.zeros(1))
         mujoco.mj_forward(self.model, self.data)
-        mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
         self.sensordata = self.data.sensordata.copy()
         self.time = 0.0
         self._ped_track = np.zeros((0, len(self.ped_index), 3))
@@ -145,8 +133,9 @@ class Engine:
             cmd[forcing.wheel] *= forcing.speed_factor(self.time)
         return cmd
 
-    def step(self, wheel_cmd: np.ndarray | list[float], out: np.ndarray) -> None:
+    def step(self, wheel_cmd: np.ndarray | list[float], out: np.ndarray) -> bool:
         """Run one period of `len(out)` steps with the given wheel commands; sensordata goes to `out`.
+        Returns whether the robot touched an obstacle (a contact sensor found a contact) in the period.
 
         Args:
             wheel_cmd: (W,) wheel speed commands, rad/s.
@@ -167,17 +156,12 @@ class Engine:
             self._ensure_ped_track(i0 + k)
             self._ped_view(control[0])[:, self.ped_mocap, :] = self._ped_track[i0 : i0 + k]
         if self._flats and self._flat_near(k):
-            self._step_flat(control, out)
+            touched = self._step_flat(control, out)
         else:
-            # The rollout starts from `state` with a zero solver warm start (as every period has), and
-            # leaves the period's last step in `data`, whose full state is the next period's start.
-            self._runner.rollout(
-                self._models, self._datas, self._state0, control, control_spec=_CONTROL_SPEC,
-                skip_checks=True, nstep=k, sensordata=out[None],
-            )  # fmt: skip
-            mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
+            touched = self._stepper.run(control[0], out)  # `data` carries on: the next period starts here
         self.sensordata = out[k - 1]
-        self.time = self.data.time  # = state[0]
+        self.time = self.data.time
+        return touched
 
     def _flat_near(self, k: int) -> bool:
         """Whether a flat spot meets the floor during the coming `k` steps (then they run one by one)."""
@@ -188,13 +172,14 @@ class Engine:
             for f in self._flats
         )  # fmt: skip
 
-    def _step_flat(self, control: np.ndarray, out: np.ndarray) -> None:
+    def _step_flat(self, control: np.ndarray, out: np.ndarray) -> bool:
         """Run the period's steps one at a time, raising each flat-spotted wheel's collision sphere by its
         flat's lift (`sim.faults.FaultForcing.flat_lift`) at the wheel's angle before every step."""
         sl = self.world.sensors
+        touched = False
         for i in range(out.shape[0]):
             sd = self.sensordata
-            time = float(self.state[0])
+            time = self.data.time
             for f in self._flats:
                 theta = float(sd[sl.wheel_angle + f.wheel])
                 lift = f.flat_lift(time, theta)
@@ -203,12 +188,9 @@ class Engine:
                 self.model.geom_pos[g] = self._geom_pos0[f.wheel] + lift * np.array(
                     [-math.sin(theta), 0.0, math.cos(theta)]
                 )
-            self._runner.rollout(
-                self._models, self._datas, self.state[None], control[:, i : i + 1],
-                control_spec=_CONTROL_SPEC, skip_checks=True, nstep=1, sensordata=out[None, i : i + 1],
-            )  # fmt: skip
-            mujoco.mj_getState(self.model, self.data, self.state, _STATE_SPEC)
+            touched = self._stepper.run(control[0, i : i + 1], out[i : i + 1]) or touched
             self.sensordata = out[i]
+        return touched
 
     def _ped_view(self, control: np.ndarray) -> np.ndarray:
         k = control.shape[0]
@@ -298,7 +280,7 @@ class Engine:
 
     def _apply_geometry(self) -> None:
         """An out-of-round wheel: its collision shape moved off the axle by the runout, towards the defect's
-        angle, for the coming period (the model is read at every step of the rollout)."""
+        angle, for the coming period (the model is read at every step of the period)."""
         for forcing in self.forcings:
             offset = forcing.geometry_offset(self.time)
             if forcing.record.kind != "out_of_round":
@@ -312,7 +294,7 @@ class Engine:
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross product over the last axis, with `np.cross`'s products and differences (the same bits) but
-    without its axis handling, which costs more than the arithmetic on the rollout's 3-vectors."""
+    without its axis handling, which costs more than the arithmetic on the 3-vectors."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)

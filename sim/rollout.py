@@ -45,7 +45,7 @@ event, `sim.events.MERGE_GAP`, were longer: the sparse contact arrays rely on it
 class Recording:
     """The physics-rate sensors of an episode, as `run_route` records them.
 
-    The rollout writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
+    The stepper writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
     `move` then copies the signals (the sensors up to the contact sensors, which follow them) to one
     (n, width of the signals) array in one copy of whole rows, of which each signal is a column view
     (`cols`: what `assemble_trace` takes apart), so there is no (n, nsensordata) array. The contact sensors
@@ -79,7 +79,7 @@ class Recording:
         if [start for start, _ in spans] != ends[:-1] or ends[-1] != nsensordata:
             raise RuntimeError(f"the recorded signals {spans} do not tile the {nsensordata} sensor values")
         self.buffer = np.empty((periods * CONTROL_STEPS, nsensordata))
-        """Where the rollout writes: (periods x CONTROL_STEPS, nsensordata)."""
+        """Where the stepper writes: (periods x CONTROL_STEPS, nsensordata)."""
         self.done = 0
         """Steps moved from `buffer` to the arrays."""
         first = min(start for start, _ in groups)
@@ -139,7 +139,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
     """Drive the scenario's route; returns the sensors after every physics step.
 
     Per control period: the pose from the last step's sensors, the contacts of the period before, the
-    controller's command, and one `mujoco.rollout` of `CONTROL_STEPS` steps into a slot of the recording
+    controller's command, and `CONTROL_STEPS` physics steps (`sim.stepper`) into a slot of the recording
     buffer (the views the next period reads of each slot are made once, not every period).
     """
     world = engine.world
@@ -170,21 +170,20 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
     sd = engine.sensordata
     pose_now = sd[pose_at : pose_at + 7]
     targets = sd[targets_at:found_at].reshape(k_obs, 3)[:, :2]
-    found: np.ndarray | None = None  # contact counts of the period before
+    found = slot_found[0]  # contact counts of the period before (read only after a contact)
+    contact = False  # whether the robot touched an obstacle in the period before
     for p, start in enumerate(range(0, n, CONTROL_STEPS)):
         slot = p % periods
         if slot == 0 and start > 0:  # buffer full: move it to the arrays, start again at its top
             record.move(start)
         x, y, _, qw, qx, qy, qz = pose_now.tolist()
         pose = (x, y, yaw_of((qw, qx, qy, qz)))
-        contact = False
-        if found is not None and np.count_nonzero(found):  # counts are whole numbers >= 0: any contact
-            contact = True
+        if contact:  # in the period before
             for ob in np.flatnonzero(found.any(axis=0) & live):
                 engine.step_back(int(ob), pose)  # a pedestrian who is bumped steps back and stands
         v, w = command(engine.time, pose, contact, targets, period)
         k = min(CONTROL_STEPS, n - start)
-        step(wheel_commands(v, w), slots[slot] if k == CONTROL_STEPS else slots[slot][:k])
+        contact = step(wheel_commands(v, w), slots[slot] if k == CONTROL_STEPS else slots[slot][:k])
         found, pose_now, targets = slot_found[slot], slot_pose[slot], slot_targets[slot]
     record.move(n)
     return record

@@ -13,6 +13,11 @@ from sim_kit import straight
 
 import sim
 from sim import Fault, Obstacle, make_dm_env, make_env
+from sim.engine import CONTROL_STEPS
+from sim.world import PHYSICS_DT
+
+PERIOD = CONTROL_STEPS * PHYSICS_DT
+"""One environment step, s."""
 
 
 def test_registered_env_passes_check_env() -> None:
@@ -62,11 +67,11 @@ def test_episode_truncates_at_scenario_duration() -> None:
     while not truncated:
         truncated = env.step(np.zeros(2, dtype=np.float32))[3]
         steps += 1
-    assert steps == pytest.approx(0.5 / 0.04, abs=1)
+    assert steps == pytest.approx(0.5 / PERIOD, abs=1)
 
 
 def test_dm_env_specs_reset_and_step() -> None:
-    env = make_dm_env(straight(duration=0.4), seed=2)
+    env = make_dm_env(straight(duration=5 * PERIOD), seed=2)
     spec = env.observation_spec()
     assert spec["imu"].shape == (7,) and spec["wheels"].shape == (8,)
     action = env.action_spec()
@@ -82,7 +87,7 @@ def test_dm_env_specs_reset_and_step() -> None:
         kinds.append(ts.step_type)
         if ts.last():
             break
-    assert kinds[:-1] == [StepType.MID] * (len(kinds) - 1) and len(kinds) == 10
+    assert kinds[:-1] == [StepType.MID] * (len(kinds) - 1) and len(kinds) == 5
     assert env.step(np.zeros(2, dtype=np.float32)).step_type == StepType.FIRST
 
 
@@ -98,8 +103,8 @@ def test_observations_and_labels_are_the_traces_own() -> None:
     from sim.events import LABEL_MARGIN_BEFORE
     from sim.rollout import assemble_trace
 
-    scenario = straight(
-        duration=3.0, faults=(Fault("bearing", 1, 0.8, 0.1),), obstacles=(Obstacle("box", -8.5, 0.0),)
+    scenario = straight(  # a whole number of steps, as the trace's IMU noise is drawn for its duration
+        duration=40 * PERIOD, faults=(Fault("bearing", 1, 0.8, 0.1),), obstacles=(Obstacle("box", -8.5, 0.0),)
     )
     env = make_env(scenario)
     env.reset()

@@ -94,16 +94,17 @@ def test_faults_outside_their_window_leave_zero_wrenches() -> None:
     assert engine._control[0, :, wrenches].any()  # the fault pushes once it acts
 
 
-def test_two_step_decimation_is_numpy_mean_bit_for_bit() -> None:
-    """`decimate`'s (a + b + 0.0) / 2 against numpy's mean, signed zeros, NaNs, infinities and subnormals
-    included, on contiguous and strided columns."""
+@pytest.mark.parametrize("factor", [1, 2])
+def test_one_and_two_step_decimation_is_numpy_mean_bit_for_bit(factor: int) -> None:
+    """`decimate`'s (a + b + 0.0) / 2, and a step's own value, against numpy's mean, signed zeros, NaNs,
+    infinities and subnormals included, on contiguous and strided columns."""
     special = [0.0, -0.0, 1.0, -1.0, 5e-324, -5e-324, np.inf, -np.inf, np.nan, -np.nan, 1e308, -1e308, -2.2]
     pairs = np.array([[a, b] for a in special for b in special]).ravel()
     columns = np.stack([pairs, pairs[::-1], -pairs], axis=1)
     noise = np.random.default_rng(0).normal(size=(4001, 3))
     with np.errstate(all="ignore"):
         for x in (pairs, pairs[:-1], columns, columns[:, 2], noise, noise[:, 1]):
-            n = x.shape[0] // 2 * 2
-            expected = x[:n].reshape(n // 2, 2, *x.shape[1:]).mean(axis=1)
-            got = decimate(x, 2)
+            n = x.shape[0] // factor * factor
+            expected = x[:n].reshape(n // factor, factor, *x.shape[1:]).mean(axis=1)
+            got = decimate(x, factor)
             assert got.shape == expected.shape and got.tobytes() == expected.tobytes()

@@ -49,3 +49,26 @@ def test_worlds_of_one_unit_do_not_share_robot_arrays() -> None:
     a, b = build_world(scenario), build_world(scenario)
     assert a.robot.info.wheel_radius is not b.robot.info.wheel_radius
     assert a.robot.info.wheel_radius.tolist() == b.robot.info.wheel_radius.tolist()
+
+
+@pytest.mark.parametrize("surface", sorted(SURFACES))
+def test_every_contact_is_at_least_two_steps_soft(surface: str) -> None:
+    """MuJoCo's soft contact is stable when its time constant is at least two physics steps
+    (`sim.world.PHYSICS_DT`): every geom pair that can touch, on every floor, with the time constant MuJoCo
+    gives their contact (the higher-priority geom's, else the solmix-weighted mean)."""
+    allowed = {"indoor": vocab.INDOOR_SURFACES, "outdoor": vocab.OUTDOOR_SURFACES}
+    worlds = [build_world(s.replace(surface=surface)) for s in SCENARIOS if surface in allowed[s.environment]]
+    assert worlds
+    for world in worlds:
+        m = world.model
+        for i in range(m.ngeom):
+            for j in range(i + 1, m.ngeom):
+                touch = m.geom_contype[i] & m.geom_conaffinity[j] or m.geom_contype[j] & m.geom_conaffinity[i]
+                if not touch or m.geom_bodyid[i] == m.geom_bodyid[j]:
+                    continue
+                if m.geom_priority[i] != m.geom_priority[j]:
+                    tau = m.geom_solref[i if m.geom_priority[i] > m.geom_priority[j] else j, 0]
+                else:
+                    mix = m.geom_solmix[i] / (m.geom_solmix[i] + m.geom_solmix[j])
+                    tau = mix * m.geom_solref[i, 0] + (1 - mix) * m.geom_solref[j, 0]
+                assert tau >= 2 * m.opt.timestep - 1e-12, (surface, i, j, tau)

@@ -94,6 +94,16 @@ INDICATORS: dict[str, tuple[str, ...]] = {
 }
 """The indicators read for each fault kind, in their feature columns' order (see the module)."""
 _NAMES = frozenset(name for names in INDICATORS.values() for name in names)
+SCALE_FREE: frozenset[str] = frozenset({"corner_rise"})
+"""The indicators relative to their channels' own deviation: they find a defect, but stop growing once it
+dominates its channels, so they do not measure its size (the audit's severity gradient leaves them out)."""
+
+
+def size_columns(kind: str) -> list[int]:
+    """The feature columns of `kind`'s indicators that measure the defect's size (those not `SCALE_FREE`)."""
+    return [i for i, name in enumerate(INDICATORS[kind]) if name not in SCALE_FREE]
+
+
 PASS_POOLINGS = ("mean", "t")
 """How a strike indicator pools its passes' log ratios (`strike_statistic`). "mean": their mean, how far
 each strike stands out whatever the number of passes (the audit's oracle, whose severity gradient compares
@@ -361,6 +371,10 @@ class Rarity:
     def fit(cls, x: np.ndarray) -> Rarity:
         """Fit on (n, F) nominal rows."""
         return cls(np.sort(np.asarray(x, dtype=np.float64), axis=0))
+
+    def only(self, columns: list[int]) -> Rarity:
+        """The distributions of the indicators in `columns` alone (a row's score sums theirs)."""
+        return Rarity(self.sorted_values[:, columns])
 
     def score(self, x: np.ndarray) -> np.ndarray:
         """(k,) the sum over the features of (k, F) rows of -log10 of each one's upper-tail probability under

@@ -17,7 +17,7 @@ Each indicator is compared with its distribution over nominal training windows (
 window's score is the summed rarity of its kind's indicators (`fault_indicators.Rarity`). Reported per fault
 kind and severity bin (`SEVERITY_BINS`) as an AUC against the nominal test windows, with its episode-cluster
 bootstrap interval; at severity >= 0.75 each kind must reach `ORACLE_FLOOR`, and its fault windows must
-stand out further than at severity < 0.5 (`GRADIENT_PROBE`).
+stand out further than at severity < 0.5 in the indicators of the defect's size (`GRADIENT_PROBE`).
 
 The control keeps it honest: every fault episode simulated and rendered again with its fault at severity
 0 (same seed, same driving, same defect angle), scored on the same windows through the same view, must be
@@ -38,7 +38,7 @@ from benchmarks import condition, fault_indicators
 from benchmarks.audit.report import ProbeRow
 from benchmarks.dataset import MIN_FAULT_REVOLUTIONS, Dataset, WindowRow, episode_audio_config
 from benchmarks.episode import read_episode, read_trace
-from benchmarks.fault_indicators import Rarity, WheelSite
+from benchmarks.fault_indicators import INDICATORS, Rarity, WheelSite
 from benchmarks.uncertainty import Interval, auc_interval
 from msvdd import preprocess
 from msvdd.contract import AUDIO_LEN, AUDIO_RATE, IMU_LEN, IMU_RATE
@@ -180,6 +180,9 @@ class Scored:
     """(q,) their episodes."""
     control: np.ndarray | None = None
     """(p,) scores of the same windows re-simulated with the fault at severity 0 (None: not run)."""
+    positive_size: np.ndarray | None = None
+    """(p,) the fault windows' evidence from the kind's indicators of the defect's size alone
+    (`fault_indicators.size_columns`; None: all of them measure it, the same as `positive`)."""
 
 
 def _train_rows(data: Dataset) -> list[WindowRow]:
@@ -241,13 +244,17 @@ def score_faults(
     severities = data.fault_severities()
     out = []
     for k in found:
-        pos, ctl, eps, sev = [], [], [], []
+        pos, ctl, eps, sev, size = [], [], [], [], []
+        columns = fault_indicators.size_columns(k)
+        sized = fitted[k].only(columns)
         for episode_id, starts in tqdm(_by_episode([r for r in faults if r.sub_kind == k]).items(),
                                        desc=f"oracle: {k}", disable=not progress):  # fmt: skip
             trace = read_trace(data.path / episode_id)
             view = fault_view(trace.faults[0], trace.robot)
             sig = trace_signals(trace, read_episode(data.path / episode_id).audio)
-            pos.append(fitted[k].score(window_features(sig, starts, [view])[0]))
+            x = window_features(sig, starts, [view])[0]
+            pos.append(fitted[k].score(x))
+            size.append(sized.score(x[:, columns]))
             if control:
                 trace0, audio0 = control_trace(data, episode_id)
                 sig0 = trace_signals(trace0, audio0.samples)
@@ -264,6 +271,7 @@ def score_faults(
                 negative=fitted[k].score(x_neg),
                 negative_episode=neg_eps,
                 control=np.concatenate(ctl) if control else None,
+                positive_size=None if len(columns) == len(INDICATORS[k]) else np.concatenate(size),
             )
         )
     return out
@@ -273,15 +281,18 @@ ORACLE_PROBE = "privileged oracle (true wheel angle, defect angle and order)"
 """The oracle probe's name in the audit table."""
 CONTROL_PROBE = "oracle on the same episodes re-simulated at severity 0"
 """The control probe's name."""
-GRADIENT_PROBE = "oracle evidence at severity >= 0.75 over < 0.5"
-"""The severity gradient probe's name: a more severe defect must stand out further (the median score of the
-top bin's fault windows over the bottom bin's; an AUC near 1 in both bins no longer tells them apart)."""
+GRADIENT_PROBE = "oracle size evidence at severity >= 0.75 over < 0.5"
+"""The severity gradient probe's name: a more severe defect must stand out further (the median evidence of
+the top bin's fault windows over the bottom bin's; an AUC near 1 in both bins no longer tells them apart),
+read in the indicators that measure its size (`Scored.positive_size`): an indicator relative to its
+channels' deviation stops growing once the defect dominates them (`fault_indicators.SCALE_FREE`), and its
+spread over the driving then decides the comparison."""
 
 
 def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
     """The audit's `oracle` rows: per fault kind its AUC overall and per severity bin (the top bin with the
-    floor `ORACLE_FLOOR`), the severity gradient (`GRADIENT_PROBE`: the top bin's median score over the bottom
-    one's, at least 0) and the control (two-sided, at most `CONTROL_LIMIT`)."""
+    floor `ORACLE_FLOOR`), the severity gradient (`GRADIENT_PROBE`: the top bin's median size evidence over
+    the bottom one's, at least 0) and the control (two-sided, at most `CONTROL_LIMIT`)."""
     rows: list[ProbeRow] = []
     for s in scored:
         bins = np.array([severity_bin(v) for v in s.positive_severity])
@@ -301,7 +312,8 @@ def oracle_rows(scored: list[Scored]) -> list[ProbeRow]:
                 )
             )  # fmt: skip
         if top in aucs and bottom in aucs:
-            high, low = (float(np.median(s.positive[bins == b])) for b in (top, bottom))
+            size = s.positive if s.positive_size is None else s.positive_size
+            high, low = (float(np.median(size[bins == b])) for b in (top, bottom))
             rows.append(
                 ProbeRow(
                     "oracle", GRADIENT_PROBE, f"sub:{s.kind}", high - low, None, "evidence",

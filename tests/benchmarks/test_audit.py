@@ -293,3 +293,31 @@ def test_the_severity_gradient_compares_how_far_the_bins_stand_out_not_their_auc
         gradient = rows[oracle.GRADIENT_PROBE]
         assert gradient.figure == pytest.approx(high - low)  # both bins at AUC 1: the margin orders them
         assert gradient.status == ("PASS" if passes else "FAIL")
+
+
+def test_the_severity_gradient_reads_the_defects_size_not_a_scale_free_indicator() -> None:
+    # an out-of-round wheel's corner_rise (relative to the motion's deviation) is as high at every severity
+    # and spread by the driving; its rise_level grows with the runout: the gradient reads rise_level alone
+    negative = np.linspace(0.0, 1.0, 50)
+    severity = np.repeat([0.3, 0.9], 20)
+    both = np.where(severity > 0.5, 5.0, 6.0)  # the sum: the low bin's driving happened to stand out more
+    size = np.where(severity > 0.5, 1.2, 0.8)
+    scored = oracle.Scored(
+        "out_of_round", both, np.repeat([f"f{i}" for i in range(8)], 5), severity, negative,
+        np.repeat([f"n{i}" for i in range(10)], 5), positive_size=size,
+    )  # fmt: skip
+    rows = {r.probe: r for r in oracle.oracle_rows([scored]) if r.target == "sub:out_of_round"}
+    assert rows[oracle.GRADIENT_PROBE].figure == pytest.approx(0.4)
+    assert rows[oracle.GRADIENT_PROBE].status == "PASS"
+    assert fault_indicators.size_columns("out_of_round") == [1]  # rise_level, not corner_rise
+    assert all(fault_indicators.size_columns(k) == list(range(len(names)))
+               for k, names in fault_indicators.INDICATORS.items() if k != "out_of_round")  # fmt: skip
+
+
+def test_a_rarity_of_some_columns_sums_their_evidence() -> None:
+    x = np.random.default_rng(3).normal(size=(200, 3))
+    fitted = fault_indicators.Rarity.fit(x)
+    rows = np.array([[0.5, 2.0, -1.0], [3.0, 0.0, 4.0]])
+    parts = [fitted.only([c]).score(rows[:, [c]]) for c in range(3)]
+    np.testing.assert_allclose(fitted.only([0, 2]).score(rows[:, [0, 2]]), parts[0] + parts[2])
+    np.testing.assert_allclose(fitted.score(rows), sum(parts))

@@ -105,7 +105,7 @@ class Room:
         room_power = (h.real**2 + h.imag**2).sum(axis=0)
         s = send_spectrum.astype(np.complex128)
         send_power = s.real**2 + s.imag**2
-        total = 2.0 * float(np.dot(room_power, send_power)) - float(room_power[0] * send_power[0])
+        total = 2.0 * kernels.sum_products(room_power, send_power) - float(room_power[0] * send_power[0])
         # the full-rate samples are DECIMATION times as many, each band-limited: / DECIMATION (as `wet`)
         return total / low / DECIMATION
 

@@ -4,6 +4,8 @@ exactly, the one- and two-pole filters by scipy's `lfilter`."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -257,6 +259,16 @@ def test_a_sum_of_squares_is_the_float64_sum_of_the_squares(dtype: type) -> None
         exact = float(np.sum(x.astype(np.float64) ** 2))
         assert kernels.sum_squares(x) == pytest.approx(exact, rel=1e-13, abs=0.0)
     assert kernels.sum_squares(np.full(8, 1e20, dtype=np.float32)) == pytest.approx(8e40, rel=1e-6)
+
+
+def test_a_sum_of_products_is_the_exact_dot_product_to_float64_rounding() -> None:
+    rng = np.random.default_rng(10)
+    for n in (0, 1, 7, 8, 9, 1001, 300_000):
+        x, y = rng.standard_normal(n) * 1e3, rng.exponential(size=n)
+        exact = math.fsum((x * y).tolist())  # each product rounded once, the sum exactly
+        assert kernels.sum_products(x, y) == pytest.approx(exact, rel=1e-12, abs=1e-9)
+    x, y = rng.random(300_000), rng.random(300_000)
+    assert kernels.sum_products(x, y) == kernels.sum_products(x.copy(), y.copy())  # nothing but the values
 
 
 def test_twiddles_are_the_complex_exponentials_to_float32_rounding() -> None:

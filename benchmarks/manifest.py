@@ -62,10 +62,10 @@ makes other bytes than under format 8 (its audio differs in the dither alone), w
 took the floor's friction, dragged and bounced), the dither is a hash of each sample's index and the sources'
 reverberation energy is summed from spectra: a seed makes other episodes than under format 9, which stays
 readable.
-11: the same layout; the physics steps at 5 ms (`sim.world.PHYSICS_DT`, one step per IMU sample, where it
-stepped twice) and the route controller commands at 12.5 Hz (`sim.engine.CONTROL_STEPS`, where it commanded
-at 25 Hz), with the solver warm-started across control periods (`sim.stepper`): a seed makes other episodes
-than under format 10, which stays readable.
+11: the same layout; the steps of a control period run in one compiled `mj_step` loop (`sim.stepper`, where
+`mujoco.rollout` ran them), which keeps the solver's warm start from period to period, and the room's
+reverberation energy sums its products on one thread (`synth_audio.kernels.sum_products`, where BLAS split
+the sum by its thread count): a seed makes other bytes than under format 10, which stays readable.
 """
 READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10, 11)
 """Dataset format versions `Manifest.load` reads."""

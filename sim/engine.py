@@ -19,9 +19,7 @@ from sim.stepper import CONTROL_SPEC, Stepper
 from sim.world import World
 
 CONTROL_STEPS = 16
-"""Physics steps per control period (16 x 5 ms = 80 ms, a 12.5 Hz velocity command, within the 10-20 Hz
-at which mobile robots' local planners command theirs (Nav2's controller server: 20 Hz by default); the
-wheels' velocity servos act at every physics step)."""
+"""Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
 
 SKID_TRACK_FACTOR = 2.0
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""

@@ -3,7 +3,7 @@
 Action: left and right wheel speed commands in [-1, 1] (scaled to `max_wheel_speed` rad/s). Observation:
 the IMU (3-axis accelerometer, 3-axis gyro, z-velocity, with noise and bias) and the wheel state
 (speeds and torques). Info: the label of the step (normal / collision / mechanical, sub-kind, wheel)
-and the robot-obstacle contacts of the step. One step is one 80 ms control period.
+and the robot-obstacle contacts of the step. One step is one 40 ms control period.
 
 The observables come from the same code as `sim.simulate`'s trace: the IMU observation is the last IMU
 sample of the step, decimated by `sim.imu.decimate` with the noise of `sim.imu.imu_noise` (the scenario's
@@ -138,7 +138,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         return self._observe(self.engine.sensordata[None, :]), self._info([])
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """One 80 ms control period with wheel speed commands `action` (left, right) in [-1, 1]."""
+        """One 40 ms control period with wheel speed commands `action` (left, right) in [-1, 1]."""
         a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), -1.0, 1.0) * self.max_wheel_speed
         cmd = np.where(self._left > 0, a[0], a[1])
         sl = self.world.sensors

@@ -30,9 +30,9 @@ class ImuSamples:
 def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     """Block mean over `factor` physics steps (the IMU's own anti-alias averaging); axis 0.
 
-    One step (the simulator's: `sim.world.PHYSICS_DT` is the IMU's period) gives its value plus +0.0, two are
-    averaged as (a + b + 0.0) / 2: the bits of numpy's `mean` (whose sum starts from +0.0, so that -0.0
-    averages to +0.0) without its reduction machinery."""
+    Two steps (the simulator's at 200 Hz) are averaged as (a + b + 0.0) / 2, and one step gives its value plus
+    +0.0: the bits of numpy's `mean` (whose sum starts from +0.0, so that -0.0 averages to +0.0) without its
+    reduction machinery."""
     n = (x.shape[0] // factor) * factor
     if factor == 1:  # numpy's mean of one value: that value plus +0.0 (which turns -0.0 into +0.0)
         return x[:n] + 0.0

@@ -24,15 +24,13 @@ from sim.scenario import OBSTACLE_MASS, Obstacle, Scenario
 from sim.trace import ObstacleRecord
 from sim.vocab import TRANSIENT_HEIGHT
 
-PHYSICS_DT = 0.005
-"""Physics time step, s: one step per 5 ms IMU sample (200 Hz).
+PHYSICS_DT = 0.0025
+"""Physics time step, s: two steps per 5 ms IMU sample.
 
-What sets it: every contact's time constant (MuJoCo's `solref`, the mean of the two geoms', or the
-higher-priority geom's) is at least two steps, MuJoCo's condition for a stable soft contact (the stiffest,
-an obstacle or the chassis on tile or concrete, is 14 ms); a fault's strike is an impulse over one step
-whatever the step (`sim.faults`), and the IMU samples every step. What it costs: a skid-steer turn's
-stick-slip in the friction solver is resolved more coarsely than at 2.5 ms, so the IMU's vibration in turns
-is somewhat larger (that numerical chatter is not converged at 2.5 ms either)."""
+Every contact's time constant (MuJoCo's `solref`: the higher-priority geom's, else the two geoms' mean) is at
+least two steps, MuJoCo's condition for a stable soft contact. A 5 ms step would halve the simulation's cost
+and keep that condition, but a skid-steer turn's stick-slip in the friction solver then rings the chassis
+several times as hard in its bounce and rock band (8-32 Hz), where a loose hub's rattle is read."""
 
 SLEEP_TOLERANCE = 1e-3
 """Speed under which a movable obstacle counts as at rest, m/s (MuJoCo's default `sleep_tolerance`).

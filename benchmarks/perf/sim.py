@@ -56,7 +56,7 @@ STAGE = PerfStage(
     describe={
         "sim_rtf": "simulated s per CPU s of simulate() on one core, nominal_indoor 60 s (target >= 150)",
         "sim_overhead_vs_bare": "simulate() CPU time / bare mj_step loop, same model, steps (target <= 1.10)",
-        "sim_us_per_step": "simulate() CPU microseconds per 5 ms physics step",
+        "sim_us_per_step": "simulate() CPU microseconds per 2.5 ms physics step",
         "sim_bare_us_per_step": "bare mj_step loop CPU microseconds per physics step",
         "sim_bare_rtf": "real-time factor of the bare mj_step loop (the ceiling for sim_rtf)",
     },

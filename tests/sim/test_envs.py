@@ -71,7 +71,7 @@ def test_episode_truncates_at_scenario_duration() -> None:
 
 
 def test_dm_env_specs_reset_and_step() -> None:
-    env = make_dm_env(straight(duration=5 * PERIOD), seed=2)
+    env = make_dm_env(straight(duration=10 * PERIOD), seed=2)
     spec = env.observation_spec()
     assert spec["imu"].shape == (7,) and spec["wheels"].shape == (8,)
     action = env.action_spec()
@@ -87,7 +87,7 @@ def test_dm_env_specs_reset_and_step() -> None:
         kinds.append(ts.step_type)
         if ts.last():
             break
-    assert kinds[:-1] == [StepType.MID] * (len(kinds) - 1) and len(kinds) == 5
+    assert kinds[:-1] == [StepType.MID] * (len(kinds) - 1) and len(kinds) == 10
     assert env.step(np.zeros(2, dtype=np.float32)).step_type == StepType.FIRST
 
 
@@ -104,7 +104,9 @@ def test_observations_and_labels_are_the_traces_own() -> None:
     from sim.rollout import assemble_trace
 
     scenario = straight(  # a whole number of steps, as the trace's IMU noise is drawn for its duration
-        duration=40 * PERIOD, faults=(Fault("bearing", 1, 0.8, 0.1),), obstacles=(Obstacle("box", -8.5, 0.0),)
+        duration=round(3.0 / PERIOD) * PERIOD,
+        faults=(Fault("bearing", 1, 0.8, 0.1),),
+        obstacles=(Obstacle("box", -8.5, 0.0),),
     )
     env = make_env(scenario)
     env.reset()

@@ -30,12 +30,9 @@ class ImuSamples:
 def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     """Block mean over `factor` physics steps (the IMU's own anti-alias averaging); axis 0.
 
-    Two steps (the simulator's at 200 Hz) are averaged as (a + b + 0.0) / 2, and one step gives its value plus
-    +0.0: the bits of numpy's `mean` (whose sum starts from +0.0, so that -0.0 averages to +0.0) without its
-    reduction machinery."""
+    Two steps (the simulator's) are averaged as (a + b + 0.0) / 2: the bits of numpy's `mean` (whose sum
+    starts from +0.0, so that two -0.0 average to +0.0) without its reduction machinery."""
     n = (x.shape[0] // factor) * factor
-    if factor == 1:  # numpy's mean of one value: that value plus +0.0 (which turns -0.0 into +0.0)
-        return x[:n] + 0.0
     if factor == 2:
         return np.asarray((x[0:n:2] + x[1:n:2] + 0.0) / 2)
     return x[:n].reshape(n // factor, factor, *x.shape[1:]).mean(axis=1)

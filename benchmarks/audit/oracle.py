@@ -246,7 +246,7 @@ def score_faults(
     for k in found:
         pos, ctl, eps, sev, size = [], [], [], [], []
         columns = fault_indicators.size_columns(k)
-        sized = fitted[k].only(columns)
+        sized = fitted[k].only(columns) if len(columns) < len(INDICATORS[k]) else None
         for episode_id, starts in tqdm(_by_episode([r for r in faults if r.sub_kind == k]).items(),
                                        desc=f"oracle: {k}", disable=not progress):  # fmt: skip
             trace = read_trace(data.path / episode_id)
@@ -254,7 +254,8 @@ def score_faults(
             sig = trace_signals(trace, read_episode(data.path / episode_id).audio)
             x = window_features(sig, starts, [view])[0]
             pos.append(fitted[k].score(x))
-            size.append(sized.score(x[:, columns]))
+            if sized is not None:
+                size.append(sized.score(x[:, columns]))
             if control:
                 trace0, audio0 = control_trace(data, episode_id)
                 sig0 = trace_signals(trace0, audio0.samples)
@@ -271,7 +272,7 @@ def score_faults(
                 negative=fitted[k].score(x_neg),
                 negative_episode=neg_eps,
                 control=np.concatenate(ctl) if control else None,
-                positive_size=None if len(columns) == len(INDICATORS[k]) else np.concatenate(size),
+                positive_size=None if sized is None else np.concatenate(size),
             )
         )
     return out

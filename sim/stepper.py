@@ -1,8 +1,8 @@
 """Physics steps in one compiled loop: MuJoCo's `mj_step`, called from numba through MuJoCo's C library.
 
 The simulator steps the physics in control periods of a few steps, with the controls of every step given
-(`sim.engine`). `mujoco.rollout` costs microseconds per call and per step beyond the steps themselves (its
-arguments converted, the state set from an array and read back, the solver's warm start cleared); this loop
+(`sim.engine`). `mujoco.rollout` costs microseconds per call beyond the steps themselves (its arguments
+converted, the state set from an array and read back, the solver's warm start cleared); this loop
 writes each step's controls into the `MjData` arrays, calls `mj_step` and copies the sensors out, with
 nothing between the steps. The data carries on from period to period (the solver's warm start included),
 as a plain `mj_step` loop does.

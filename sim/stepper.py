@@ -121,7 +121,8 @@ class Stepper:
         self.model = model
         self.data = data
         targets = (data.ctrl, data.qfrc_applied, data.xfrc_applied, data.mocap_pos, data.sensordata)
-        if sum(t.size for t in targets[:_TARGETS]) != mujoco.mj_stateSize(model, int(CONTROL_SPEC)):
+        ncontrol = int(mujoco.mj_stateSize(model, int(CONTROL_SPEC)))
+        if sum(t.size for t in targets[:_TARGETS]) != ncontrol:
             raise RuntimeError("the control arrays are not MuJoCo's control layout")
         if not all(t.dtype == np.float64 and t.flags.c_contiguous for t in targets):
             raise RuntimeError("MuJoCo's data arrays are not contiguous float64")
@@ -134,7 +135,7 @@ class Stepper:
             raise ValueError(f"contact sensors {contacts} are outside the {size} sensor values")
         addresses += [int(first), int(count)]
         self.layout = np.array(addresses, dtype=np.int64)
-        self._widths = (int(mujoco.mj_stateSize(model, int(CONTROL_SPEC))), int(size))
+        self._widths = (ncontrol, int(size))
         """Addresses and lengths `_step_rows` reads (valid while `data` lives, which this object keeps)."""
         # MuJoCo's automatic reset on a diverged state would put the robot back at its start unseen: a
         # divergence is reported instead (NaN sensors).

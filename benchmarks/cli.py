@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import os
 import pkgutil
 import signal
 import sys
 import textwrap
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from types import FrameType
+from typing import Any
 
 from benchmarks import commands
 from benchmarks.command import Command
@@ -92,16 +94,46 @@ def _terminate(signum: int, frame: FrameType | None) -> None:
     raise Terminated
 
 
+REDELIVERY_DELAY_S = 0.01
+"""How long after a stop was swallowed it is signalled again, s: the finalizer that swallowed it has
+returned by then."""
+
+
+def _redeliver_swallowed_stops(previous: Callable[[Any], object]) -> Callable[[Any], object]:
+    """A `sys.unraisablehook` that signals a swallowed stop again, and hands everything else to `previous`.
+
+    A signal's exception raised while a finalizer runs (an object's `__del__`, such as llvmlite's while
+    numba compiles, or a weakref's callback) cannot leave it: Python prints "Exception ignored in ..." and the
+    command would carry on as if nothing had been asked. The same signal is sent again a moment later, from
+    another thread, so that its handler raises where the exception propagates."""
+
+    def hook(unraisable: Any) -> None:
+        kind = unraisable.exc_type
+        if kind is not None and issubclass(kind, KeyboardInterrupt):
+            signum = signal.SIGTERM if issubclass(kind, Terminated) else signal.SIGINT
+            timer = threading.Timer(REDELIVERY_DELAY_S, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+            return
+        previous(unraisable)
+
+    return hook
+
+
 @contextlib.contextmanager
 def stop_on_sigterm() -> Iterator[None]:
-    """While inside, SIGTERM raises `Terminated` in the main thread (elsewhere: nothing changes)."""
+    """While inside, SIGTERM raises `Terminated` in the main thread, and a SIGTERM or Ctrl-C whose exception
+    a finalizer swallowed is signalled again (`_redeliver_swallowed_stops`); elsewhere nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = signal.signal(signal.SIGTERM, _terminate)
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _redeliver_swallowed_stops(previous_hook)
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
         signal.signal(signal.SIGTERM, previous)
 
 

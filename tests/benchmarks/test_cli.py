@@ -186,3 +186,30 @@ def test_sigterm_stops_a_command_like_ctrl_c_and_leaves_nothing(tmp_path: Path, 
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert "msvdd-bench generate: terminated (SIGTERM)" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sigterm_a_finalizer_swallowed_is_signalled_again() -> None:
+    """A SIGTERM whose handler runs while an object's `__del__` does (llvmlite's, while numba compiles) raises
+    `Terminated` in there, where Python ignores it ("Exception ignored in ..."), and the command would go on;
+    the signal is sent again and stops the command where it was. The hook goes when the block ends."""
+    import signal
+    import time
+
+    from benchmarks.cli import Terminated, stop_on_sigterm
+
+    swallowed: list[bool] = []
+
+    class Finalized:
+        def __del__(self) -> None:
+            signal.raise_signal(signal.SIGTERM)  # the handler runs here, before the finalizer returns
+            swallowed.append(True)  # not reached: the handler's Terminated ended the finalizer
+
+    hook = sys.unraisablehook
+    deadline = time.monotonic() + 10.0
+    with pytest.raises(Terminated), stop_on_sigterm():
+        Finalized()  # dropped at once: its __del__ runs here
+        while time.monotonic() < deadline:
+            time.sleep(0.001)
+    assert time.monotonic() < deadline
+    assert swallowed == []
+    assert sys.unraisablehook is hook

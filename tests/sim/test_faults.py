@@ -83,13 +83,13 @@ def test_loose_wheel_wobbles_the_yaw_at_the_rotation_frequency() -> None:
 
 def test_motor_degradation_ripples_the_torque_and_droops_the_wheel() -> None:
     base = _run("", 0.0)
-    f_motor = base.robot.gear_ratio * _rotation_hz(base)
     keep = (base.time > WINDOW[0]) & (base.time < WINDOW[1])
     rate = 1 / base.physics_dt
-    ripple = [
-        _amplitude((_run("motor_degradation", s) if s else base).wheel_torque[keep, 0], rate, f_motor, 1.0)
-        for s in (0.0, 0.5, 1.0)
-    ]
+    ripple = []
+    for s in (0.0, 0.5, 1.0):  # at each wheel's own motor rate (worn gears droop)
+        trace = _run("motor_degradation", s) if s else base
+        f_motor = trace.robot.gear_ratio * _rotation_hz(trace)
+        ripple.append(_amplitude(trace.wheel_torque[keep, 0], rate, f_motor, 1.0))
     assert ripple[0] < ripple[1] < ripple[2]
     worn = _run("motor_degradation", 1.0)
     # the worn wheel's motor works against the three healthy ones: it brakes on average

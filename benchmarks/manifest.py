@@ -31,7 +31,7 @@ from sim.random_scenarios import ScenarioOptions
 MANIFEST_FILE = "manifest.json"
 """The dataset folder's index."""
 
-DATASET_FORMAT_VERSION = 11
+DATASET_FORMAT_VERSION = 12
 """Version of the dataset layout (manifest, window table, episode folders).
 
 2: the manifest's preset holds an SNR range (`snr_db` = [low, high], drawn uniformly per episode) and separate
@@ -66,8 +66,12 @@ readable.
 `mujoco.rollout` ran them), which keeps the solver's warm start from period to period, and the room's
 reverberation energy sums its products on one thread (`synth_audio.kernels.sum_products`, where BLAS split
 the sum by its thread count): a seed makes other bytes than under format 10, which stays readable.
+12: the same layout; the tyres grip by a regularised Coulomb law of their own (`sim.tyre`, each wheel's floor
+contact solved by MuJoCo for its normal force only), where MuJoCo's contact friction stuck and slipped in
+skid-steer turns and shook the chassis; worn gears ripple their wheel's speed (the transmission error)
+rather than its torque: a seed makes other episodes than under format 11, which stays readable.
 """
-READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10, 11)
+READABLE_DATASET_FORMATS: tuple[int, ...] = (4, 5, 6, 7, 8, 9, 10, 11, 12)
 """Dataset format versions `Manifest.load` reads."""
 
 LEGACY_SCALES: dict[str, str] = {"tiny": "smoke", "quick": "short", "paper": "full"}

@@ -16,12 +16,13 @@ import numpy as np
 from sim.faults import FaultForcing, make_forcings
 from sim.scenario import Obstacle, Scenario
 from sim.stepper import CONTROL_SPEC, Stepper
+from sim.tyre import tyres
 from sim.world import World
 
 CONTROL_STEPS = 16
 """Physics steps per control period (16 x 2.5 ms = 40 ms, a 25 Hz controller)."""
 
-SKID_TRACK_FACTOR = 2.0
+SKID_TRACK_FACTOR = 1.75
 """Effective track / geometric track of the skid-steer robot (lateral wheel slip when turning)."""
 
 STEP_BACK = 0.4
@@ -70,7 +71,11 @@ class Engine:
         self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
         self._steps = self.dt * np.arange(CONTROL_STEPS)  # step offsets in a period, s
         self._wheel_control = self._control[0, :, : m.nu]
-        self._stepper = Stepper(m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)))
+        mujoco.mj_forward(m, self.data)
+        self.tyres = tyres(world, self.data)
+        self._stepper = Stepper(
+            m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
+        )
         self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
         self._ped_track = np.zeros((0, 0, 3))
         self._stepped_back: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
@@ -261,7 +266,10 @@ class Engine:
             theta = angle + omega * steps
             wrench = np.zeros((k, 6))
             qf = np.zeros(k)
-            forcing.apply(times, theta, omega, lateral, torque, wrench, qf, self.dt)
+            speed = np.ones(k)
+            forcing.apply(times, theta, omega, lateral, torque, wrench, qf, speed, self.dt)
+            if (speed != 1.0).any():
+                control[:, wi] *= speed
             # Adding an all-zero wrench or torque is skipped: the columns start at +0.0 and sums that start
             # there never make -0.0, so adding +-0.0 would leave every entry as it is.
             if wrench.any():

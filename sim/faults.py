@@ -40,8 +40,10 @@ maintenance criteria of AGV / AMR wheels, hubs, bearings and gearboxes:
   J = sqrt(2 `WHEEL_MASS` F delta), `RATTLE_RATE` clunks per second at `NOMINAL_RIM_SPEED`, in proportion
   to speed, most where the wobble peaks.
 - motor_degradation: worn gears and a weakened motor. The gear mesh's transmission error grows to
-  (1 + s `WEAR_GAIN`) times a healthy pair's (the mesh tone, in the audio); the worn pair's eccentricity
-  ripples the torque once per motor shaft revolution (s `MOTOR_RIPPLE` of the motor torque); the motor loses
+  (1 + s `WEAR_GAIN`) times a healthy pair's (the mesh tone, in the audio); the worn pinion's eccentricity
+  (s `GEAR_ECCENTRICITY_M` on its `PINION_PITCH_RADIUS`) makes the wheel's speed lead and lag the motor's
+  once per motor shaft revolution (`MOTOR_SPEED_RIPPLE`, the gear pair's transmission error), which the
+  tyres pass to the chassis as a rocking force; the motor loses
   s `MOTOR_TORQUE_LOSS` of its torque, drags with s `MOTOR_DRAG`, and its wheel droops by s `MOTOR_DROOP`.
 
 The strikes the physics applies (flat spot, bearing, loose wheel) are recorded in the trace
@@ -95,8 +97,13 @@ WEAR_GAIN = 6.0
 """Growth of the gear-mesh transmission error at severity 1, in units of a healthy pair's (+17 dB)."""
 MOTOR_TORQUE_LOSS = 0.4
 """Fraction of motor torque lost at severity 1."""
-MOTOR_RIPPLE = 0.25
-"""Torque ripple amplitude at severity 1, fraction of the motor torque (once per motor revolution)."""
+GEAR_ECCENTRICITY_M = 50e-6
+"""Runout of a worn motor pinion at severity 1, m (a healthy one of its size runs true to about 10 um)."""
+PINION_PITCH_RADIUS = 2.75e-3
+"""Pitch radius of the motor pinion, m (14 teeth of module 0.4 mm)."""
+MOTOR_SPEED_RIPPLE = GEAR_ECCENTRICITY_M / PINION_PITCH_RADIUS
+"""Amplitude of the worn gears' speed ripple at severity 1, fraction of the wheel speed: an eccentric
+pinion's pitch radius, and with it the speed it passes on, varies by its runout once per revolution."""
 MOTOR_DRAG = 0.15
 """Extra viscous drag at severity 1, N m s/rad."""
 MOTOR_DROOP = 0.25
@@ -251,6 +258,7 @@ class FaultForcing:
         motor_torque: float,
         xfrc: np.ndarray,
         qfrc: np.ndarray,
+        speed: np.ndarray,
         dt: float,
     ) -> None:
         """Add this fault's forcing over k steps, and record its strikes.
@@ -263,6 +271,7 @@ class FaultForcing:
             motor_torque: wheel motor torque now, N m.
             xfrc: (k, 6) force/torque on the chassis at the hub (world frame), added to.
             qfrc: (k,) generalised force on the wheel joint, added to.
+            speed: (k,) factor on the wheel's speed command, multiplied into.
             dt: physics step, s.
         """
         on = self.active(t)
@@ -293,9 +302,8 @@ class FaultForcing:
                 self._strike(xfrc, t, hits, strike_impulse(f, np.zeros(len(t)), corner, radius), dt)
         elif kind == "motor_degradation":
             s = f.severity
-            ripple = np.sin(self.robot.gear_ratio * theta)
-            loss = MOTOR_TORQUE_LOSS * motor_torque + MOTOR_DRAG * omega
-            qfrc += on * s * (MOTOR_RIPPLE * abs(motor_torque) * ripple - loss)
+            speed *= 1.0 + on * s * MOTOR_SPEED_RIPPLE * np.sin(self.robot.gear_ratio * theta)
+            qfrc -= on * s * (MOTOR_TORQUE_LOSS * motor_torque + MOTOR_DRAG * omega)
 
     def _strike(
         self, xfrc: np.ndarray, t: np.ndarray, hits: np.ndarray, impulse: np.ndarray, dt: float

@@ -73,7 +73,7 @@ class Recording:
             (sl.mic, 6),
             (sl.obstacle_pos, 3 * k),
         )
-        contacts = ((sl.obstacle_contact, k), (sl.transient_contact, w))
+        contacts = ((sl.obstacle_contact, k), (sl.transient_contact, w), (sl.tyre_contact, w))
         spans = sorted([*groups, *((start, 7 * count) for start, count in contacts)])
         ends = [0] + [start + width for start, width in spans]
         if [start for start, _ in spans] != ends[:-1] or ends[-1] != nsensordata:

@@ -104,6 +104,8 @@ class SensorSlices:
     """K x 7: per obstacle: found (contact count), net force of robot on obstacle (3, world), centroid (3)."""
     transient_contact: int
     """W x 7: per wheel: found, net force of wheel on transients (3, world), centroid (3)."""
+    tyre_contact: int
+    """W x 7: per wheel: found, net normal force between the wheel and the floor (3, world), centroid (3)."""
 
 
 @dataclass(frozen=True)
@@ -156,7 +158,8 @@ def build_world(scenario: Scenario) -> World:
     obstacles = list(scenario.obstacles) + border_walls(scenario)
     w = len(robot.info.wheel_names)
     slices = _sensor_slices(w, len(obstacles))
-    if model.nsensordata != slices.transient_contact + 7 * w:
+    _tyre_pairs(model, robot)
+    if model.nsensordata != slices.tyre_contact + 7 * w:
         raise RuntimeError(f"sensor layout mismatch: {model.nsensordata} values")
     return _world(model, robot, scenario, obstacles, slices)
 
@@ -205,10 +208,16 @@ def world_xml(scenario: Scenario) -> tuple[str, BuiltRobot, np.ndarray | None]:
     pos = [x0, y0, float(robot.info.wheel_radius.mean()) + 0.002]
     quat = [np.cos(yaw0 / 2), 0.0, 0.0, np.sin(yaw0 / 2)]
     prefix = robot.model.model + "/"
+    wheels = robot.info.wheel_names
     out += [
         f'    <body pos="{_fs(pos)}" quat="{_fs(quat)}" name="{prefix}">\n',
         part.body,
-        "  </worldbody>\n  <actuator>\n",
+        "  </worldbody>\n  <contact>\n",
+        *(f'    <exclude name="//unnamed_contact_{i}" body1="world" body2="{prefix}wheel_{n}"/>\n'
+          for i, n in enumerate(wheels)),
+        *(f'    <pair name="//unnamed_contact_{len(wheels) + i}" class="/" geom1="floor" geom2="{prefix}{n}" '
+          'condim="1"/>\n' for i, n in enumerate(wheels)),
+        "  </contact>\n  <actuator>\n",
         part.actuators,
         "  </actuator>\n",
     ]
@@ -350,6 +359,7 @@ def _sensors_xml(out: list[str], prefix: str, wheels: tuple[str, ...], k: int) -
         for i in range(k)
     ]
     out += [f'    <contact name="bump_{n}" geom1="{prefix}{n}" body2="transients" {data}/>\n' for n in wheels]
+    out += [f'    <contact name="tyre_{n}" geom1="{prefix}{n}" geom2="floor" {data}/>\n' for n in wheels]
     out.append("  </sensor>\n")
 
 
@@ -359,7 +369,24 @@ def _sensor_slices(w: int, k: int) -> SensorSlices:
         wheel_angle=0, wheel_speed=w, wheel_torque=2 * w, base_pos=3 * w, base_quat=3 * w + 3,
         base_linvel=3 * w + 7, base_angvel=3 * w + 10, acc=3 * w + 13, vel=3 * w + 16, mic=3 * w + 19,
         obstacle_pos=3 * w + 25, obstacle_contact=3 * w + 25 + 3 * k, transient_contact=3 * w + 25 + 10 * k,
+        tyre_contact=3 * w + 25 + 10 * k + 7 * w,
     )  # fmt: skip
+
+
+def _tyre_pairs(model: mujoco.MjModel, robot: BuiltRobot) -> None:
+    """Give each wheel-floor pair what MuJoCo gives a contact it generates between the two geoms (solmix
+    weighted solref and solimp, the larger friction, margin and gap): the pairs' normal force is the one
+    of the dynamic contacts they replace; their friction is the tyre law's (`sim.tyre`)."""
+    for p in range(model.npair):
+        g1, g2 = int(model.pair_geom1[p]), int(model.pair_geom2[p])
+        m1, m2 = float(model.geom_solmix[g1]), float(model.geom_solmix[g2])
+        mix = 0.5 if m1 + m2 == 0 else m1 / (m1 + m2)
+        model.pair_solref[p] = mix * model.geom_solref[g1] + (1 - mix) * model.geom_solref[g2]
+        model.pair_solimp[p] = mix * model.geom_solimp[g1] + (1 - mix) * model.geom_solimp[g2]
+        f = np.maximum(model.geom_friction[g1], model.geom_friction[g2])
+        model.pair_friction[p] = [f[0], f[0], f[1], f[2], f[2]]
+        model.pair_margin[p] = max(model.geom_margin[g1], model.geom_margin[g2])
+        model.pair_gap[p] = max(model.geom_gap[g1], model.geom_gap[g2])
 
 
 def _world(

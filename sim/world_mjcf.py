@@ -41,8 +41,19 @@ def mjcf_world(scenario: Scenario) -> mjcf.RootElement:
         _keep_obstacles_off_heightfield(robot, obstacles, obstacle_bodies)
     transients = _add_transients(arena, scenario)
     _attach_robot(arena, robot, scenario.route.start)
+    _add_tyre_pairs(arena, robot)
     _add_sensors(arena, robot, obstacle_bodies, transients)
     return arena
+
+
+def _add_tyre_pairs(arena: mjcf.RootElement, robot: BuiltRobot) -> None:
+    """Each wheel meets the floor through an explicit pair solved for its normal force only (`sim.tyre`
+    gives the grip); the contacts MuJoCo would generate between them are excluded."""
+    floor = arena.worldbody.find("geom", "floor")
+    for name in robot.info.wheel_names:
+        arena.contact.add("exclude", body1="world", body2=robot.model.find("body", f"wheel_{name}"))
+    for name in robot.info.wheel_names:
+        arena.contact.add("pair", geom1=floor, geom2=robot.model.find("geom", name), condim=1)
 
 
 def _keep_obstacles_off_heightfield(
@@ -113,6 +124,12 @@ def _add_sensors(
     for name in wheels:
         sensor.add(
             "contact", name=f"bump_{name}", geom1=robot.model.find("geom", name), body2=transients,
+            data="found force pos", reduce="netforce", num=1,
+        )  # fmt: skip
+    floor = arena.worldbody.find("geom", "floor")
+    for name in wheels:
+        sensor.add(
+            "contact", name=f"tyre_{name}", geom1=robot.model.find("geom", name), geom2=floor,
             data="found force pos", reduce="netforce", num=1,
         )  # fmt: skip
 

@@ -29,8 +29,9 @@ STEM_NAMES: tuple[str, ...] = (
 """Per-source stems an `Audio` can carry; their sum is the mix before the output limiter."""
 
 
-MUTABLE_SOURCES: tuple[str, ...] = ("transients", "impacts", "faults")
-"""Source groups `AudioConfig.muted` can leave out (the audit deletes the anomaly's own sound this way)."""
+MUTABLE_SOURCES: tuple[str, ...] = ("transients", "impacts", "strain", "faults")
+"""Source groups `AudioConfig.muted` can leave out (the audit deletes the anomaly's own sound this way);
+`strain` is the drive's load from the robot's contacts with obstacles (`drive.unstrained_torque`)."""
 
 
 class AudioError(ValueError):

@@ -98,6 +98,20 @@ def reference_torque(robot: RobotInfo) -> float:
     return max(0.25 * robot.mass * GRAVITY * radius / max(len(robot.wheel_names), 1), 1e-6)
 
 
+def unstrained_torque(
+    time: np.ndarray, torque: np.ndarray, start: np.ndarray, duration: np.ndarray
+) -> np.ndarray:
+    """(T, W) wheel torques without the strain of the robot's contacts with obstacles: over each contact
+    [start, start + duration] every wheel's torque is held at its value of the step before the contact, the
+    load the drive had before the obstacle pushed back (the motors' sound then follows the driving alone)."""
+    out = np.array(torque, dtype=np.float64)
+    ends = np.asarray(start, dtype=np.float64) + np.asarray(duration, dtype=np.float64)
+    for t0, t1 in zip(np.asarray(start, dtype=np.float64), ends, strict=True):
+        a, b = np.searchsorted(time, [t0, t1], side="left")
+        out[a : b + 1] = out[max(a - 1, 0)]
+    return out
+
+
 def build_drive(
     robot: RobotInfo,
     time: np.ndarray,

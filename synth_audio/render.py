@@ -22,7 +22,7 @@ from synth_audio import ambience as amb
 from synth_audio import kernels
 from synth_audio import nearfield as nf
 from synth_audio.config import STEM_NAMES, Audio, AudioConfig, AudioError
-from synth_audio.drive import Drive, build_drive, reference_torque
+from synth_audio.drive import Drive, build_drive, reference_torque, unstrained_torque
 from synth_audio.dsp import add_at, bed_pool, noise_bed, rms, white
 from synth_audio.electronics import FAN_DB, fan_sound, unit_fan
 from synth_audio.faults import fault_sound
@@ -236,7 +236,10 @@ def render(trace: Trace, config: AudioConfig | None = None, seed: int = 0) -> Au
     sr = config.sample_rate
     n = round(trace.duration * sr)
     robot = trace.robot
-    drive = build_drive(robot, trace.time, trace.wheel_angle, trace.wheel_speed, trace.wheel_torque, n, sr)
+    torque = trace.wheel_torque
+    if "strain" in config.muted:
+        torque = unstrained_torque(trace.time, torque, trace.contacts.time, trace.contacts.duration)
+    drive = build_drive(robot, trace.time, trace.wheel_angle, trace.wheel_speed, torque, n, sr)
     scale = 10.0 ** (config.reference_level_dbfs / 20.0) / reference_rms(robot, config)
     # Stems in this order: the mix adds them in it, and the room's send is the sum of those before it.
     stems = _robot_stems(trace, drive, config, seed, scale)

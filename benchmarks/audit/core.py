@@ -8,8 +8,9 @@ The probes (limits in `benchmarks.audit.report`):
 - naive: window audio RMS, peak level, crest factor and spectral-flux peak at 44.1 kHz, and the IMU
   acceleration peak, overall, per kind and per sub-kind;
 - deleted: the test anomaly episodes rendered again from their stored traces without their own sound
-  (impacts, scrapes and fault sounds muted; same seed, same physics), scored by the audio-only reference
-  detector; if it still finds them, it hears something other than the anomaly;
+  (impacts, scrapes, the motors' strain against the obstacle during a contact, and fault sounds muted; same
+  seed, same physics), scored by the audio-only reference detector; if it still finds them, it hears
+  something other than the anomaly (the robot's manoeuvres before and after a contact stay in);
 - level: in each fault test episode, the fault's own sound (the stored mix less its muted re-render)
   against the rest of the mix in the fault's characteristic band after onset, dB; the median per sub-kind and
   per sub-kind and severity bin is reported (far below 0 dB, the fault is buried in the sound);
@@ -95,8 +96,9 @@ CONTEXT_HOP_S = 1.0
 """Hop between context windows, s."""
 AMBIENCE_EPISODES = 3
 """Nominal test episodes rendered again with stems for the ambience repetition probe."""
-MUTED_ANOMALY_SOURCES: tuple[str, ...] = ("impacts", "faults")
-"""What the deleted-sound probe mutes: collision impacts and scrapes, and wheel-fault sounds."""
+MUTED_ANOMALY_SOURCES: tuple[str, ...] = ("impacts", "strain", "faults")
+"""What the deleted-sound probe mutes: collision impacts and scrapes, the drive's strain while the robot
+touches an obstacle (its motors' load held at the load before the contact), and wheel-fault sounds."""
 
 BEHAVIOUR_PROBES = ("reversing", "turning_in_place", "yaw_rate_peak")
 """Behaviour scalars with a limit on collisions. Peak deceleration is the impact itself, and standing still

@@ -92,13 +92,13 @@ def test_a_dataset_of_an_earlier_format_is_refused_naming_both_versions(
     tiny_dataset: Path, tmp_path: Path
 ) -> None:
     # Format 3 held the fault kind `imbalance` where `out_of_round` now is: its labels would be misread.
-    assert ds.DATASET_FORMAT_VERSION == 11 and READABLE_DATASET_FORMATS == (4, 5, 6, 7, 8, 9, 10, 11)
+    assert ds.DATASET_FORMAT_VERSION == 12 and READABLE_DATASET_FORMATS == (4, 5, 6, 7, 8, 9, 10, 11, 12)
     copy = tmp_path / "old"
     copy.mkdir()
     manifest = json.loads((tiny_dataset / "manifest.json").read_text())
     manifest["format_version"] = 3
     (copy / "manifest.json").write_text(json.dumps(manifest))
-    readable = r"format_version 3, this software reads format_version 4, 5, 6, 7, 8, 9, 10 or 11"
+    readable = r"format_version 3, this software reads format_version 4, 5, 6, 7, 8, 9, 10, 11 or 12"
     with pytest.raises(ds.DatasetError, match=readable):
         ds.open_dataset(copy, verify=False)
 

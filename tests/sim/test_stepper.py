@@ -9,7 +9,8 @@ from sim_kit import straight
 
 from sim.scenario import Obstacle
 from sim.stepper import CONTROL_SPEC, Stepper
-from sim.world import build_world
+from sim.tyre import Tyres, tyres
+from sim.world import World, build_world
 
 
 def _controls(model: mujoco.MjModel, steps: int, seed: int) -> np.ndarray:
@@ -24,20 +25,28 @@ def _controls(model: mujoco.MjModel, steps: int, seed: int) -> np.ndarray:
     return rows
 
 
+def _tyres(world: World, data: mujoco.MjData) -> Tyres:
+    mujoco.mj_forward(world.model, data)
+    return tyres(world, data)
+
+
 def test_steps_equal_a_python_mj_step_loop_bit_for_bit() -> None:
     scenario = straight(duration=2.0, obstacles=(Obstacle("box", -9.0, 0.0),))
     world = build_world(scenario)
     model = world.model
     controls = _controls(model, 300, seed=4)
     data = mujoco.MjData(model)
-    stepper = Stepper(model, data, (world.sensors.obstacle_contact, len(world.obstacles)))
+    contacts = (world.sensors.obstacle_contact, len(world.obstacles))
+    stepper = Stepper(model, data, contacts, _tyres(world, data))
     got = np.empty((len(controls), model.nsensordata))
     touched = [stepper.run(controls[i : i + 20], got[i : i + 20]) for i in range(0, len(controls), 20)]
 
     reference = mujoco.MjData(model)  # the model's flags as the stepper left them (no automatic reset)
+    grip = Stepper(model, reference, contacts, _tyres(world, reference))  # its tyres, stepped from Python
     want = np.empty_like(got)
     for i, row in enumerate(controls):
         mujoco.mj_setState(model, reference, row, int(CONTROL_SPEC))
+        grip.add_tyre_forces()
         mujoco.mj_step(model, reference)
         want[i] = reference.sensordata
     np.testing.assert_array_equal(got, want)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
-from audio_trace_kit import make_trace
+from audio_trace_kit import contacts, make_trace
 from signal_oracles import peak_frequency
 
 from synth_audio import AudioConfig, render
@@ -50,3 +52,23 @@ def test_standing_still_leaves_only_the_idle_hum_and_the_environment() -> None:
 def test_rolling_noise_grows_with_speed(quiet: AudioConfig) -> None:
     levels = [float(np.std(render(make_trace(1.0, w), quiet, 0).stems["rolling"])) for w in (4.0, 8.0, 16.0)]
     assert levels[0] < levels[1] < levels[2]
+
+
+def test_muting_the_strain_holds_the_motor_load_through_each_contact_only(quiet: AudioConfig) -> None:
+    """The audit's deleted-sound render: over a contact the motors sound at the load they had before it (the
+    obstacle's push on the drive taken out), elsewhere exactly as in the full render."""
+    plain = make_trace(duration=2.0, wheel_speed=10.0, contact_events=contacts([1.0], durations=[0.4]))
+    torque = plain.wheel_torque.copy()
+    during = (plain.time >= 1.0) & (plain.time <= 1.4)
+    torque[during] *= 4.0  # the motors strain against the obstacle
+    strained = dataclasses.replace(plain, wheel_torque=torque)
+    muted = AudioConfig(**{**quiet.__dict__, "muted": ("impacts", "strain")})
+    impacts_only = AudioConfig(**{**quiet.__dict__, "muted": ("impacts",)})
+    same = render(plain, impacts_only, seed=2).samples
+    np.testing.assert_array_equal(render(strained, muted, seed=2).samples, same)
+    louder = render(strained, impacts_only, seed=2).stems["motor"]
+    held = render(strained, muted, seed=2).stems["motor"]
+    sr = 44100
+    inside = slice(int(1.05 * sr), int(1.35 * sr))
+    assert np.std(louder[inside]) > 1.5 * np.std(held[inside])
+    np.testing.assert_array_equal(louder[: int(0.95 * sr)], held[: int(0.95 * sr)])

@@ -54,7 +54,8 @@ class Recording:
     found and stay 0 elsewhere (their array is made at the first such block: a sensor that never finds a
     contact reads as a read-only view of zeros). `contact_events` and
     `transient_events` read them only inside runs of found contacts (gaps shorter than `MERGE_GAP` merged),
-    which never reach a block without one, so the events are the same as from the full arrays.
+    which never reach a block without one, so the events are the same as from the full arrays. The tyres'
+    floor contacts, the last sensors, are the step loop's (`sim.tyre`) and are not recorded.
     """
 
     def __init__(self, n: int, nsensordata: int, sl: SensorSlices, w: int, k: int, periods: int) -> None:
@@ -73,11 +74,12 @@ class Recording:
             (sl.mic, 6),
             (sl.obstacle_pos, 3 * k),
         )
-        contacts = ((sl.obstacle_contact, k), (sl.transient_contact, w), (sl.tyre_contact, w))
+        contacts = ((sl.obstacle_contact, k), (sl.transient_contact, w))
         spans = sorted([*groups, *((start, 7 * count) for start, count in contacts)])
         ends = [0] + [start + width for start, width in spans]
-        if [start for start, _ in spans] != ends[:-1] or ends[-1] != nsensordata:
-            raise RuntimeError(f"the recorded signals {spans} do not tile the {nsensordata} sensor values")
+        # the tyres' floor contacts follow, read by the step loop (`sim.tyre`) and not recorded
+        if [start for start, _ in spans] != ends[:-1] or ends[-1] != sl.tyre_contact:
+            raise RuntimeError(f"the recorded signals {spans} do not tile the first {sl.tyre_contact} values")
         self.buffer = np.empty((periods * CONTROL_STEPS, nsensordata))
         """Where the stepper writes: (periods x CONTROL_STEPS, nsensordata)."""
         self.done = 0

@@ -29,8 +29,9 @@ PHYSICS_DT = 0.0025
 
 Every contact's time constant (MuJoCo's `solref`: the higher-priority geom's, else the two geoms' mean) is at
 least two steps, MuJoCo's condition for a stable soft contact. A 5 ms step would halve the simulation's cost
-and keep that condition, but a skid-steer turn's stick-slip in the friction solver then rings the chassis
-several times as hard in its bounce and rock band (8-32 Hz), where a loose hub's rattle is read."""
+and keep that condition; the tyres' grip (`sim.tyre`) turns the robot the same at 1.25, 2.5 and 5 ms (MuJoCo's
+contact friction rang the chassis in the turns the harder the longer the step), and at 5 ms the velocity
+servos' torque limit needs care (docs/speed.md)."""
 
 SLEEP_TOLERANCE = 1e-3
 """Speed under which a movable obstacle counts as at rest, m/s (MuJoCo's default `sleep_tolerance`).

@@ -116,7 +116,7 @@ class View:
     order: float
     """Defect events per revolution (`sim.trace.FaultRecord.defect_order`)."""
     shaft: float
-    """Motor shaft revolutions per wheel revolution (worn gears' sidebands and torque ripple)."""
+    """Motor shaft revolutions per wheel revolution (worn gears' sidebands and speed ripple)."""
     site: WheelSite
     """Where the wheel sits on the robot (`fault_indicators.wheel_sites`)."""
 

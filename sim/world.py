@@ -159,7 +159,7 @@ def build_world(scenario: Scenario) -> World:
     obstacles = list(scenario.obstacles) + border_walls(scenario)
     w = len(robot.info.wheel_names)
     slices = _sensor_slices(w, len(obstacles))
-    _tyre_pairs(model, robot)
+    _tyre_pairs(model)
     if model.nsensordata != slices.tyre_contact + 7 * w:
         raise RuntimeError(f"sensor layout mismatch: {model.nsensordata} values")
     return _world(model, robot, scenario, obstacles, slices)
@@ -374,7 +374,7 @@ def _sensor_slices(w: int, k: int) -> SensorSlices:
     )  # fmt: skip
 
 
-def _tyre_pairs(model: mujoco.MjModel, robot: BuiltRobot) -> None:
+def _tyre_pairs(model: mujoco.MjModel) -> None:
     """Give each wheel-floor pair what MuJoCo gives a contact it generates between the two geoms (solmix
     weighted solref and solimp, the larger friction, margin and gap): the pairs' normal force is the one
     of the dynamic contacts they replace; their friction is the tyre law's (`sim.tyre`)."""

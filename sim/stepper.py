@@ -212,6 +212,7 @@ class Stepper:
         arrays = (data.qvel, data.xpos, data.xmat, data.xipos, data.xaxis, data.xfrc_applied, data.sensordata)
         self._state = np.array([v for a in arrays for v in (int(a.ctypes.data), int(a.size))], dtype=np.int64)
         """Addresses and lengths of the data's arrays the tyres' grip reads and writes."""
+        self._dt = float(model.opt.timestep)
         self._tyres = tyres.table if tyres is not None else np.zeros((0, 6))
         self._root = tyres.root if tyres is not None else np.zeros(2)
         # MuJoCo's automatic reset on a diverged state would put the robot back at its start unseen: a
@@ -222,7 +223,7 @@ class Stepper:
         """The tyres' grip of the data's present state added to its `xfrc_applied`, as `run` does before
         each step (no tyres: nothing)."""
         if self._tyres.shape[0]:
-            _add_tyre_forces(self._state, self._tyres, self._root, float(self.model.opt.timestep))
+            _add_tyre_forces(self._state, self._tyres, self._root, self._dt)
 
     def run(self, control: np.ndarray, out: np.ndarray) -> bool:
         """Step once per row of `control` ((k, ncontrol), `CONTROL_SPEC` order, C-contiguous rows), the
@@ -236,7 +237,7 @@ class Stepper:
             shapes = f"controls {control.shape}, sensors {out.shape}"
             raise ValueError(f"{shapes}: the model's rows are {self._widths} wide, at least as many controls")
         found = _step_rows(
-            self.layout, control, out, self._state, self._tyres, self._root, float(self.model.opt.timestep)
+            self.layout, control, out, self._state, self._tyres, self._root, self._dt
         )
         if found < 0.0:
             t = self.data.time

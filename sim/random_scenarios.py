@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -78,22 +79,77 @@ def _nearest_box(points: np.ndarray, boxes: np.ndarray) -> float:  # pragma: no 
     return best
 
 
-def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
-    """Smallest distance from any of `points` (n, 2) to any obstacle (pedestrian paths included)."""
-    boxes = [(ob.x, ob.y, math.cos(ob.yaw), math.sin(ob.yaw), ob.size[0], ob.size[1]) for ob in obstacles]
-    best = _nearest_box(np.asarray(points, dtype=np.float64), np.array(boxes)) if obstacles else math.inf
-    for ob in obstacles:
-        if ob.path:  # the path's waypoints, and the line from the start to its last one every 0.2 m
-            line = _sample_segment(np.array([ob.x, ob.y]), np.array(ob.path[-1]), 0.2)
-            walked = np.concatenate([np.array(ob.path, dtype=np.float64).reshape(-1, 2), line])
-            near = float(np.linalg.norm(points[:, None, :] - walked, axis=-1).min())
-            best = min(best, near - ob.size[0])
+@njit(cache=True, nogil=True)
+def _nearest_point(points: np.ndarray, others: np.ndarray) -> float:  # pragma: no cover - compiled
+    """Smallest distance between points (n, 2) and points (m, 2), inf without either (numpy's
+    `norm(points[:, None] - others, axis=-1).min()`, the same arithmetic element by element)."""
+    best = math.inf
+    for i in range(points.shape[0]):
+        for j in range(others.shape[0]):
+            dx = points[i, 0] - others[j, 0]
+            dy = points[i, 1] - others[j, 1]
+            best = min(best, math.sqrt(dx * dx + dy * dy))
     return best
 
 
+_FOOTPRINTS_KEPT = 256
+"""Lists of obstacles whose footprints `_footprints` keeps (the sampler asks about a few lists, often)."""
+_Walked = list[tuple[np.ndarray, float]]
+"""Pedestrians' walked points (m, 2) and radii."""
+_footprints_made: dict[tuple[int, ...], tuple[list[Obstacle], np.ndarray, _Walked]] = {}
+_footprints_lock = threading.Lock()
+
+
+def _footprints(obstacles: list[Obstacle]) -> tuple[np.ndarray, _Walked]:
+    """The obstacles' footprints as `_nearest_box` reads them (K, 6), and each pedestrian's walked points
+    (its path's waypoints, and the line from its start to the last one every 0.2 m) with its radius.
+
+    Made once per list of obstacle objects and kept (`_FOOTPRINTS_KEPT` lists, the oldest dropped first),
+    keyed by the objects' identities: an entry holds its objects, so no other object takes their identity
+    while it is kept. Obstacles are frozen; a list that changes is another key."""
+    key = tuple(map(id, obstacles))
+    made = _footprints_made.get(key)  # one dictionary lookup: atomic; the lock orders the writes
+    if made is not None:
+        return made[1], made[2]
+    boxes = np.array(
+        [(ob.x, ob.y, math.cos(ob.yaw), math.sin(ob.yaw), ob.size[0], ob.size[1]) for ob in obstacles]
+    ).reshape(len(obstacles), 6)
+    walked: _Walked = []
+    for ob in obstacles:
+        if ob.path:
+            line = _sample_segment(np.array([ob.x, ob.y]), np.array(ob.path[-1]), 0.2)
+            points = np.concatenate([np.array(ob.path, dtype=np.float64).reshape(-1, 2), line])
+            walked.append((points, ob.size[0]))
+    with _footprints_lock:
+        if len(_footprints_made) >= _FOOTPRINTS_KEPT:
+            del _footprints_made[next(iter(_footprints_made))]
+        _footprints_made[key] = (list(obstacles), boxes, walked)
+    return boxes, walked
+
+
+def _clearance(points: np.ndarray, obstacles: list[Obstacle]) -> float:
+    """Smallest distance from any of `points` (n, 2) to any obstacle (pedestrian paths included)."""
+    if not obstacles:
+        return math.inf
+    boxes, walked = _footprints(obstacles)
+    points = np.asarray(points, dtype=np.float64)
+    best = _nearest_box(points, boxes)
+    for path, radius in walked:
+        best = min(best, _nearest_point(points, path) - radius)
+    return best
+
+
+def _length(d: np.ndarray) -> float:
+    """Length of a vector: `np.linalg.norm`'s sqrt(d . d), without its argument checks (the sampler measures
+    tens of thousands of 2-vectors)."""
+    return math.sqrt(d.dot(d))
+
+
 def _sample_segment(a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
-    n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
-    return np.asarray(a + _unit_steps(n) * (b - a))
+    """Points from a to b (2-vectors) at most `step` apart, both ends included."""
+    d = b - a
+    n = max(2, math.ceil(_length(d) / step) + 1)
+    return np.asarray(a + _unit_steps(n) * d)
 
 
 @functools.lru_cache(maxsize=1024)
@@ -474,7 +530,7 @@ def _route(
                 break
         else:
             continue
-        stand = aim + (approach - aim) * min(1.0, 0.9 / max(float(np.linalg.norm(approach - aim)), 1e-9))
+        stand = aim + (approach - aim) * min(1.0, 0.9 / max(_length(approach - aim), 1e-9))
         try:
             rest, _ = _wander(rng, arena, obstacles, duration, begin=stand)
         except ScenarioError:
@@ -532,14 +588,14 @@ def _wander(
     ) and attempts < 600:
         attempts += 1
         p = _free_point(rng, arena, obstacles)
-        if p is None or not 1.2 <= np.linalg.norm(p - points[-1]) <= MAX_LEG:
+        if p is None or not 1.2 <= _length(p - points[-1]) <= MAX_LEG:
             continue
         if not _segment_clear(points[-1], p, obstacles, CLEARANCE if len(points) > 1 else first_margin):
             continue
         speed = _leg_speed(rng)
         dwell = _dwell(rng)
         waypoints.append(Waypoint(float(p[0]), float(p[1]), speed, dwell))
-        planned += float(np.linalg.norm(p - points[-1])) / speed + dwell + 1.5
+        planned += _length(p - points[-1]) / speed + dwell + 1.5
         points.append(p)
         if len(waypoints) > 400:
             break
@@ -571,7 +627,7 @@ def _manoeuvres(
             out.append(wp)
             here = there
             continue
-        if rng.random() < ESTOP_SHARE and np.linalg.norm(there - here) > 1.5:
+        if rng.random() < ESTOP_SHARE and _length(there - here) > 1.5:
             mid = here + float(rng.uniform(0.3, 0.7)) * (there - here)
             out.append(
                 Waypoint(float(mid[0]), float(mid[1]), wp.speed, float(rng.uniform(0.3, 3.0)), hard_stop=True)
@@ -664,9 +720,9 @@ def _try_leg_at(
         approach = np.array([legs[0].x, legs[0].y])
         aim = np.array([legs[1].x, legs[1].y])
         # Where the robot stands when the reflex has run: about its length short of the aim point.
-        stand = aim + (approach - aim) * min(1.0, 0.9 / max(float(np.linalg.norm(approach - aim)), 1e-9))
+        stand = aim + (approach - aim) * min(1.0, 0.9 / max(_length(approach - aim), 1e-9))
         if (
-            np.linalg.norm(approach - prev) <= MAX_LEG
+            _length(approach - prev) <= MAX_LEG
             and _segment_clear(prev, approach, obstacles, 0.6)
             and _segment_clear(approach, nxt, obstacles, 0.6)
             and _segment_clear(
@@ -771,7 +827,7 @@ def _driven_legs(
         there = np.array([w.x, w.y])
         if t < duration - 1.0 and w.ram < 0:
             legs.append((here, there))
-        t += float(np.linalg.norm(there - here)) / w.speed + w.dwell + 1.5
+        t += _length(there - here) / w.speed + w.dwell + 1.5
         here = there
     return legs
 
@@ -796,7 +852,7 @@ def _transients(
         return ()
     hx, hy = arena
     legs = _driven_legs(start, waypoints, duration)
-    lengths = np.array([np.linalg.norm(b - a) for a, b in legs])
+    lengths = np.array([_length(b - a) for a, b in legs])
     usable = lengths > 1.0
     if not usable.any():
         return ()

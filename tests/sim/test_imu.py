@@ -11,20 +11,20 @@ SAMPLES = 240_000
 """Twenty minutes at 200 Hz: a standard deviation is estimated to 0.3 % (one sigma)."""
 
 
-def _channels(noise: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    bias, walk, white = noise
-    return np.asarray(bias), np.asarray(walk), np.asarray(white)
+def _channels(seed: int) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Per sensor (accelerometer, gyroscope, z-velocity): its walk (SAMPLES, axes), its white noise and the
+    white noise's set deviation, drawn with the default settings."""
+    sensors = Sensors()
+    noise = imu_noise(SAMPLES, sensors, seed=seed)
+    sigmas = (sensors.acc_noise, sensors.gyro_noise, sensors.vel_noise)
+    return [
+        (np.asarray(walk), np.asarray(white), sigma)
+        for (_, walk, white), sigma in zip((noise.acc, noise.gyro, noise.vel), sigmas, strict=True)
+    ]
 
 
 def test_white_noise_has_the_set_deviation_on_every_channel() -> None:
-    sensors = Sensors()
-    noise = imu_noise(SAMPLES, sensors, seed=3)
-    for parts, sigma in (
-        (noise.acc, sensors.acc_noise),
-        (noise.gyro, sensors.gyro_noise),
-        (noise.vel, sensors.vel_noise),
-    ):
-        _, _, white = _channels(parts)
+    for _, white, sigma in _channels(seed=3):
         assert white.shape[0] == SAMPLES
         np.testing.assert_allclose(white.std(axis=0), sigma, rtol=0.015)
         np.testing.assert_allclose(white.mean(axis=0), 0.0, atol=5 * sigma / np.sqrt(SAMPLES))
@@ -33,16 +33,9 @@ def test_white_noise_has_the_set_deviation_on_every_channel() -> None:
 def test_bias_walk_is_a_random_walk_of_the_set_step() -> None:
     """The walk moves by one step per sample, of standard deviation bias_walk x the channel's noise, each step
     independent of the last (a random walk: its steps are uncorrelated)."""
-    sensors = Sensors()
-    noise = imu_noise(SAMPLES, sensors, seed=4)
-    for parts, sigma in (
-        (noise.acc, sensors.acc_noise),
-        (noise.gyro, sensors.gyro_noise),
-        (noise.vel, sensors.vel_noise),
-    ):
-        _, walk, _ = _channels(parts)
+    for walk, _, sigma in _channels(seed=4):
         steps = np.diff(walk, axis=0)
-        np.testing.assert_allclose(steps.std(axis=0), sensors.bias_walk * sigma, rtol=0.015)
+        np.testing.assert_allclose(steps.std(axis=0), Sensors().bias_walk * sigma, rtol=0.015)
         lag1 = np.mean(steps[1:] * steps[:-1], axis=0) / steps.var(axis=0)
         assert np.all(np.abs(lag1) < 0.01)
 

@@ -71,11 +71,6 @@ class Engine:
         self._control = np.zeros((1, CONTROL_STEPS, self.ncontrol))
         self._steps = self.dt * np.arange(CONTROL_STEPS)  # step offsets in a period, s
         self._wheel_control = self._control[0, :, : m.nu]
-        mujoco.mj_forward(m, self.data)
-        self.tyres = tyres(world, self.data)
-        self._stepper = Stepper(
-            m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
-        )
         self._base_ipos = np.array(m.body_ipos[world.base_body], dtype=np.float64)
         self._ped_track = np.zeros((0, 0, 3))
         self._stepped_back: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
@@ -101,6 +96,10 @@ class Engine:
         self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
         self.reset()
+        self.tyres = tyres(world, self.data)  # at the initial state `reset` evaluated
+        self._stepper = Stepper(
+            m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
+        )
 
     def reset(self) -> None:
         """Back to the initial state (time 0), with the sensors evaluated."""
@@ -266,10 +265,7 @@ class Engine:
             theta = angle + omega * steps
             wrench = np.zeros((k, 6))
             qf = np.zeros(k)
-            speed = np.ones(k)
-            forcing.apply(times, theta, omega, lateral, torque, wrench, qf, speed, self.dt)
-            if (speed != 1.0).any():
-                control[:, wi] *= speed
+            forcing.apply(times, theta, omega, lateral, torque, wrench, qf, control[:, wi], self.dt)
             # Adding an all-zero wrench or torque is skipped: the columns start at +0.0 and sums that start
             # there never make -0.0, so adding +-0.0 would leave every entry as it is.
             if wrench.any():

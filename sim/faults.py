@@ -271,7 +271,7 @@ class FaultForcing:
             motor_torque: wheel motor torque now, N m.
             xfrc: (k, 6) force/torque on the chassis at the hub (world frame), added to.
             qfrc: (k,) generalised force on the wheel joint, added to.
-            speed: (k,) factor on the wheel's speed command, multiplied into.
+            speed: (k,) the wheel's speed command at each step, multiplied by the fault's factor on it.
             dt: physics step, s.
         """
         on = self.active(t)

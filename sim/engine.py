@@ -1,21 +1,23 @@
 """The stepping core shared by `simulate`, the Gymnasium and the dm_env environments.
 
 Physics runs in control periods of `CONTROL_STEPS` steps through `sim.stepper` (a compiled `mj_step` loop,
-no per-step Python), which also records MuJoCo's sensors at every physics step. Per period, Python computes
-the wheel speed commands, the faults' forces for every step of the period (vectorised) and the pedestrians'
-mocap positions, and hands them to the stepper as open-loop controls.
+no per-step Python), which also records a row of sensors at every physics step (`sim.world.SensorRows`).
+Per period, Python computes the wheel speed commands, the faults' forces for every step of the period
+(vectorised) and the pedestrians' mocap positions, and hands them to the stepper as open-loop controls.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 
 from sim.faults import FaultForcing, make_forcings
 from sim.scenario import Obstacle, Scenario
-from sim.stepper import CONTROL_SPEC, Stepper
+from sim.stepper import CONTROL_SPEC, Stepper, sensor_row
 from sim.tyre import tyres
 from sim.world import World
 
@@ -55,7 +57,7 @@ def pedestrian_positions(obstacles: tuple[Obstacle, ...], times: np.ndarray) -> 
 
 
 class Engine:
-    """One world stepped period by period; records sensordata at every physics step."""
+    """One world stepped period by period; records a row of sensors (`sim.world.SensorRows`) every step."""
 
     def __init__(self, world: World, scenario: Scenario) -> None:
         self.world = world
@@ -93,20 +95,22 @@ class Engine:
             else np.zeros(0, np.int64)
         )
         self._has_peds = len(self.ped_index) > 0
-        self.sensordata = np.zeros(m.nsensordata)
         self.time = 0.0
+        self._read: Callable[[], np.ndarray] = functools.partial(sensor_row, world, self.data)
+        """The row of sensors of the data's present state (the stepper's tables, once it is made)."""
         self.reset()
         self.tyres = tyres(world, self.data)  # at the initial state `reset` evaluated
         self._stepper = Stepper(
-            m, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
+            world, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
         )
+        self._read = self._stepper.read
 
     def reset(self) -> None:
         """Back to the initial state (time 0), with the sensors evaluated."""
         mujoco.mj_resetData(self.model, self.data)
         self._set_mocap(self.data.mocap_pos, np.zeros(1))
         mujoco.mj_forward(self.model, self.data)
-        self.sensordata = self.data.sensordata.copy()
+        self.sensordata = self._read()
         self.time = 0.0
         self._ped_track = np.zeros((0, len(self.ped_index), 3))
         self._stepped_back = {}
@@ -141,7 +145,7 @@ class Engine:
 
         Args:
             wheel_cmd: (W,) wheel speed commands, rad/s.
-            out: (k, nsensordata) C-contiguous array receiving the sensors after every step.
+            out: (k, width of a row of sensors) C-contiguous array receiving the sensors after every step.
         """
         k = out.shape[0]
         if k == CONTROL_STEPS:
@@ -160,7 +164,7 @@ class Engine:
         if self._flats and self._flat_near(k):
             touched = self._step_flat(control, out)
         else:
-            touched = self._stepper.run(control[0], out)  # `data` carries on: the next period starts here
+            touched = self._stepper.run(control[0], out, self.sensordata)  # `data` carries on from here
         self.sensordata = out[k - 1]
         self.time = self.data.time
         return touched
@@ -190,7 +194,7 @@ class Engine:
                 self.model.geom_pos[g] = self._geom_pos0[f.wheel] + lift * np.array(
                     [-math.sin(theta), 0.0, math.cos(theta)]
                 )
-            touched = self._stepper.run(control[0, i : i + 1], out[i : i + 1]) or touched
+            touched = self._stepper.run(control[0, i : i + 1], out[i : i + 1], sd) or touched
             self.sensordata = out[i]
         return touched
 

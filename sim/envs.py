@@ -80,7 +80,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
             dtype=np.float32,
         )
         self.observation_space = gym.spaces.Box(-self._high, self._high, dtype=np.float32)
-        self._buffer = np.zeros((CONTROL_STEPS, self.world.model.nsensordata))
+        self._buffer = np.zeros((CONTROL_STEPS, self.world.sensors.width))
         self._factor = decimation_factor(self.scenario.sensors, self.engine.dt)
         self._n_samples = steps_for(self.scenario, self.engine.dt) // self._factor
         self._noise: ImuNoise = imu_noise(self._n_samples, self.scenario.sensors, self.scenario.seed)
@@ -90,7 +90,7 @@ class DiffDriveEnv(gym.Env[np.ndarray, np.ndarray]):
         self._left = np.array([1.0 if "left" in n else 0.0 for n in self.world.robot.info.wheel_names])
 
     def _observe(self, physics: np.ndarray) -> np.ndarray:
-        """Observation from the physics-rate sensors of the step (`physics`: (k, nsensordata))."""
+        """Observation from the physics-rate sensors of the step (`physics`: (k, row width))."""
         sl = self.world.sensors
         f = min(self._factor, physics.shape[0])
         tail = physics[-f:]

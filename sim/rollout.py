@@ -45,10 +45,10 @@ event, `sim.events.MERGE_GAP`, were longer: the sparse contact arrays rely on it
 class Recording:
     """The physics-rate sensors of an episode, as `run_route` records them.
 
-    The stepper writes every step's sensordata into `buffer` (a few control periods, in the CPU's cache);
-    `move` then copies the signals (the sensors up to the contact sensors, which follow them) to one
+    The stepper writes every step's row of sensors into `buffer` (a few control periods, in the CPU's
+    cache); `move` then copies the signals (the sensors up to the contact sensors, which follow them) to one
     (n, width of the signals) array in one copy of whole rows, of which each signal is a column view
-    (`cols`: what `assemble_trace` takes apart), so there is no (n, nsensordata) array. The contact sensors
+    (`cols`: what `assemble_trace` takes apart), so there is no (n, row width) array. The contact sensors
     (`contact`: per obstacle or wheel, found count, net force, centroid) are kept densely for the found
     counts only; force and centroid are copied for the blocks (the buffer's length) in which a contact was
     found and stay 0 elsewhere (their array is made at the first such block: a sensor that never finds a
@@ -58,7 +58,7 @@ class Recording:
     floor contacts, the last sensors, are the step loop's (`sim.tyre`) and are not recorded.
     """
 
-    def __init__(self, n: int, nsensordata: int, sl: SensorSlices, w: int, k: int, periods: int) -> None:
+    def __init__(self, n: int, sl: SensorSlices, w: int, k: int, periods: int) -> None:
         self.n = n
         """Physics steps."""
         groups = (
@@ -80,8 +80,8 @@ class Recording:
         # the tyres' floor contacts follow, read by the step loop (`sim.tyre`) and not recorded
         if [start for start, _ in spans] != ends[:-1] or ends[-1] != sl.tyre_contact:
             raise RuntimeError(f"the recorded signals {spans} do not tile the first {sl.tyre_contact} values")
-        self.buffer = np.empty((periods * CONTROL_STEPS, nsensordata))
-        """Where the stepper writes: (periods x CONTROL_STEPS, nsensordata)."""
+        self.buffer = np.empty((periods * CONTROL_STEPS, sl.width))
+        """Where the stepper writes: (periods x CONTROL_STEPS, row width)."""
         self.done = 0
         """Steps moved from `buffer` to the arrays."""
         first = min(start for start, _ in groups)
@@ -150,7 +150,7 @@ def run_route(engine: Engine, scenario: Scenario) -> Recording:
     k_obs = len(world.obstacles)
     merge_gap = merge_gap_steps(engine.dt)  # the longest gap inside a contact event, steps
     periods = max(RECORD_PERIODS, merge_gap // CONTROL_STEPS + 2)  # a block is longer than the gap
-    record = Recording(n, world.model.nsensordata, sl, world.n_wheels, k_obs, periods)
+    record = Recording(n, sl, world.n_wheels, k_obs, periods)
     pose_at, targets_at, found_at = sl.base_pos, sl.obstacle_pos, sl.obstacle_contact
     if sl.base_quat != pose_at + 3 or found_at != targets_at + 3 * k_obs:
         raise RuntimeError("unexpected sensordata layout")
@@ -201,7 +201,7 @@ def assemble_trace(
     """Turn recorded sensors into a Trace: IMU with noise, events, fault records and labels.
 
     Args:
-        sd: (n, nsensordata) sensors after every physics step, or `run_route`'s recording of them.
+        sd: (n, row width) sensors after every physics step, or `run_route`'s recording of them.
         strikes: the strikes the faults' physics applied (`sim.faults.strikes_of`); None: none.
     """
     sl = world.sensors

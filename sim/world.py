@@ -77,7 +77,9 @@ SURFACES: dict[str, Surface] = {
 
 @dataclass(frozen=True)
 class SensorSlices:
-    """Where each quantity lives in `MjData.sensordata` (start offsets; widths are fixed)."""
+    """Where each quantity lives in a row of sensors, the values the step loop records after every physics
+    step (`SensorRows`; start offsets, widths fixed): what MuJoCo's sensors of the same names give
+    (`world_xml(every_sensor=True)`)."""
 
     wheel_angle: int
     """W joint angles."""
@@ -107,6 +109,42 @@ class SensorSlices:
     """W x 7: per wheel: found, net force of wheel on transients (3, world), centroid (3)."""
     tyre_contact: int
     """W x 7: per wheel: found, net normal force between the wheel and the floor (3, world), centroid (3)."""
+    width: int
+    """Values in a row."""
+
+
+SOURCES = ("qpos", "qvel", "actuator_force", "xpos", "xquat", "site_xpos", "sensordata")
+"""The `MjData` arrays a row of sensors copies values from (the source column of `SensorRows`' copies)."""
+
+_OBJ = mujoco.mjtObj
+BODY, XBODY, GEOM = int(_OBJ.mjOBJ_BODY), int(_OBJ.mjOBJ_XBODY), int(_OBJ.mjOBJ_GEOM)
+"""Object types of a contact sensor's sides: a body, a body's subtree, a geom (MuJoCo's `mjtObj`)."""
+
+
+@dataclass(frozen=True)
+class SensorRows:
+    """How the step loop (`sim.stepper`) fills a row of sensors (`SensorSlices`) at every physics step.
+
+    Most of a row is copies of the data's arrays, which MuJoCo's sensors of the same kinds are: joint angles
+    and speeds (`qpos`, `qvel`, copied before the step, whose state the step's sensors see), actuator
+    torques, body and site positions, the base's orientation; MuJoCo's own sensors give the base's velocity
+    and the IMU (`sensordata`). The contact sensors (found count, net force, force-weighted centroid of the
+    contacts between two objects) are computed as MuJoCo's `contact` sensor with `reduce="netforce"` does,
+    from the step's contact list, scanned once. The values are MuJoCo's sensors', bit for bit (tests/sim,
+    against `reference_model`); MuJoCo passes over every sensor at each of its stages, and each `contact`
+    sensor scans the whole contact list.
+    """
+
+    copies_before: np.ndarray
+    """(n, 3) int64: row index, source (`SOURCES`), index in the source; read before each step."""
+    copies_after: np.ndarray
+    """(n, 3) int64: the same, read after each step."""
+    contacts: np.ndarray
+    """(c, 5) int64: a contact sensor's first row index (7 values), then its two sides' type and id (`BODY`,
+    `XBODY`, `GEOM`)."""
+    contact_count: int
+    """Index in `MjData.sensordata` of the step's contact count (a `contact` sensor that every contact
+    matches)."""
 
 
 @dataclass(frozen=True)
@@ -118,7 +156,9 @@ class World:
     robot: BuiltRobot
     """The robot (its `info.mass` is the compiled mass)."""
     sensors: SensorSlices
-    """Sensor offsets."""
+    """Where each value lives in a row of sensors."""
+    rows: SensorRows
+    """How the step loop fills a row of sensors."""
     n_wheels: int
     """Number of driven wheels."""
     wheel_body: np.ndarray
@@ -152,22 +192,34 @@ def build_world(scenario: Scenario) -> World:
     which cost many times the compilation; the text is the one dm_control writes for the same world
     (`sim.world_mjcf`, checked character for character in tests/sim), so the compiled model is too.
     """
-    xml, robot, hfield_data = world_xml(scenario)
-    model = mujoco.MjModel.from_xml_string(xml)
-    if hfield_data is not None:
-        model.hfield_data[:] = hfield_data
+    model, robot = _compile(scenario, every_sensor=False)
     obstacles = list(scenario.obstacles) + border_walls(scenario)
-    w = len(robot.info.wheel_names)
-    slices = _sensor_slices(w, len(obstacles))
-    _tyre_pairs(model)
-    if model.nsensordata != slices.tyre_contact + 7 * w:
-        raise RuntimeError(f"sensor layout mismatch: {model.nsensordata} values")
+    slices = _sensor_slices(len(robot.info.wheel_names), len(obstacles))
     return _world(model, robot, scenario, obstacles, slices)
 
 
-def world_xml(scenario: Scenario) -> tuple[str, BuiltRobot, np.ndarray | None]:
+def reference_model(scenario: Scenario) -> mujoco.MjModel:
+    """The scenario's world compiled with a MuJoCo sensor for every value of a row of sensors, in the row's
+    order (`world_xml(every_sensor=True)`): its `sensordata` after a step is what the step loop's row of the
+    same step holds (tests/sim checks it bit for bit). The same bodies, geoms and ids as `build_world`'s."""
+    return _compile(scenario, every_sensor=True)[0]
+
+
+def _compile(scenario: Scenario, every_sensor: bool) -> tuple[mujoco.MjModel, BuiltRobot]:
+    """The compiled model of `world_xml` (its heightfield filled, its tyre pairs set) and the robot."""
+    xml, robot, hfield_data = world_xml(scenario, every_sensor)
+    model = mujoco.MjModel.from_xml_string(xml)
+    if hfield_data is not None:
+        model.hfield_data[:] = hfield_data
+    _tyre_pairs(model)
+    return model, robot
+
+
+def world_xml(scenario: Scenario, every_sensor: bool = False) -> tuple[str, BuiltRobot, np.ndarray | None]:
     """The world's MJCF text (arena, floor, obstacles, transients, the robot on a free joint at the
-    route's start, sensors), the robot, and the heightfield's data (None on a flat floor).
+    route's start, sensors), the robot, and the heightfield's data (None on a flat floor). `every_sensor`:
+    with a MuJoCo sensor for every value of a row of sensors (the reference for the step loop's rows, see
+    `_sensors_xml`).
 
     The text is dm_control.mjcf's for the same world (`sim.world_mjcf.mjcf_world`): its element and
     attribute order, its names for unnamed elements (`//unnamed_geom_<index>`), floats written `%.17g`
@@ -222,7 +274,7 @@ def world_xml(scenario: Scenario) -> tuple[str, BuiltRobot, np.ndarray | None]:
         part.actuators,
         "  </actuator>\n",
     ]
-    _sensors_xml(out, prefix, robot.info.wheel_names, len(obstacles))
+    _sensors_xml(out, prefix, robot.info.wheel_names, len(obstacles), every_sensor)
     out.append("</mujoco>\n")
     return "".join(out), robot, field.data if field is not None else None
 
@@ -334,20 +386,27 @@ def _transient_xml(i: int, kind: str, x: float, y: float, yaw: float, length: fl
     )
 
 
-def _sensors_xml(out: list[str], prefix: str, wheels: tuple[str, ...], k: int) -> None:
-    """Every sensor, in the order `_sensor_slices` lays out: wheels, base, IMU, mics, obstacles, contacts."""
+def _sensors_xml(out: list[str], prefix: str, wheels: tuple[str, ...], k: int, every: bool = False) -> None:
+    """MuJoCo's sensors of the world: those a row of sensors takes from MuJoCo (the base's velocity, the IMU)
+    and the count of the step's contacts, which the step loop reads (`SensorRows`). `every`: instead, a
+    MuJoCo sensor for every value of the row, in the row's order (`SensorSlices`): wheels, base, IMU, mics,
+    obstacles, contacts; the reference the step loop's rows are checked against (tests/sim)."""
     out.append("  <sensor>\n")
-    out += [f'    <jointpos name="angle_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
-    out += [f'    <jointvel name="speed_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
-    out += [f'    <actuatorfrc name="torque_{n}" actuator="{prefix}{n}"/>\n' for n in wheels]
     base = f'objtype="xbody" objname="{prefix}base"'
-    out += [
-        f'    <framepos name="base_pos" {base}/>\n',
-        f'    <framequat name="base_quat" {base}/>\n',
+    imu = [
         f'    <framelinvel name="base_linvel" {base}/>\n',
         f'    <gyro name="gyro" site="{prefix}imu"/>\n',
         f'    <accelerometer name="acc" site="{prefix}imu"/>\n',
         f'    <velocimeter name="vel" site="{prefix}imu"/>\n',
+    ]
+    if not every:
+        out += [*imu, '    <contact name="contacts" num="1" data="found"/>\n', "  </sensor>\n"]
+        return
+    out += [f'    <jointpos name="angle_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
+    out += [f'    <jointvel name="speed_{n}" joint="{prefix}{n}"/>\n' for n in wheels]
+    out += [f'    <actuatorfrc name="torque_{n}" actuator="{prefix}{n}"/>\n' for n in wheels]
+    out += [f'    <framepos name="base_pos" {base}/>\n', f'    <framequat name="base_quat" {base}/>\n', *imu]
+    out += [
         f'    <framepos name="mic_left" objtype="site" objname="{prefix}mic_left"/>\n',
         f'    <framepos name="mic_right" objtype="site" objname="{prefix}mic_right"/>\n',
     ]
@@ -370,8 +429,53 @@ def _sensor_slices(w: int, k: int) -> SensorSlices:
         wheel_angle=0, wheel_speed=w, wheel_torque=2 * w, base_pos=3 * w, base_quat=3 * w + 3,
         base_linvel=3 * w + 7, base_angvel=3 * w + 10, acc=3 * w + 13, vel=3 * w + 16, mic=3 * w + 19,
         obstacle_pos=3 * w + 25, obstacle_contact=3 * w + 25 + 3 * k, transient_contact=3 * w + 25 + 10 * k,
-        tyre_contact=3 * w + 25 + 10 * k + 7 * w,
+        tyre_contact=3 * w + 25 + 10 * k + 7 * w, width=3 * w + 25 + 10 * k + 14 * w,
     )  # fmt: skip
+
+
+def _sensor_rows(
+    model: mujoco.MjModel, prefix: str, wheels: tuple[str, ...], k: int, sl: SensorSlices
+) -> SensorRows:
+    """The step loop's plan for a row of sensors (`SensorRows`) in a compiled world."""
+    qpos, qvel, force, xpos, xquat, site, sensor = range(len(SOURCES))
+    base = model.body(prefix + "base").id
+    before, after = [], []
+    for i, name in enumerate(wheels):
+        joint = model.joint(prefix + name).id
+        before += [
+            (sl.wheel_angle + i, qpos, model.jnt_qposadr[joint]),
+            (sl.wheel_speed + i, qvel, model.jnt_dofadr[joint]),
+        ]
+        after.append((sl.wheel_torque + i, force, model.actuator(prefix + name).id))
+    after += [(sl.base_pos + j, xpos, 3 * base + j) for j in range(3)]
+    after += [(sl.base_quat + j, xquat, 4 * base + j) for j in range(4)]
+    for start, name in (
+        (sl.base_linvel, "base_linvel"),
+        (sl.base_angvel, "gyro"),
+        (sl.acc, "acc"),
+        (sl.vel, "vel"),
+    ):
+        after += [(start + j, sensor, model.sensor_adr[model.sensor(name).id] + j) for j in range(3)]
+    for m, name in enumerate(("mic_left", "mic_right")):
+        after += [(sl.mic + 3 * m + j, site, 3 * model.site(prefix + name).id + j) for j in range(3)]
+    for i in range(k):
+        after += [
+            (sl.obstacle_pos + 3 * i + j, xpos, 3 * model.body(f"obstacle_{i}").id + j) for j in range(3)
+        ]
+    contacts = [
+        (sl.obstacle_contact + 7 * i, XBODY, base, BODY, model.body(f"obstacle_{i}").id) for i in range(k)
+    ]
+    transients, floor = model.body("transients").id, model.geom("floor").id
+    for w, name in enumerate(wheels):
+        contacts.append((sl.transient_contact + 7 * w, GEOM, model.geom(prefix + name).id, BODY, transients))
+    for w, name in enumerate(wheels):
+        contacts.append((sl.tyre_contact + 7 * w, GEOM, model.geom(prefix + name).id, GEOM, floor))
+    return SensorRows(
+        copies_before=np.array(before, dtype=np.int64).reshape(-1, 3),
+        copies_after=np.array(after, dtype=np.int64).reshape(-1, 3),
+        contacts=np.array(contacts, dtype=np.int64).reshape(-1, 5),
+        contact_count=int(model.sensor_adr[model.sensor("contacts").id]),
+    )
 
 
 def _tyre_pairs(model: mujoco.MjModel) -> None:
@@ -413,6 +517,7 @@ def _world(
         model=model,
         robot=dataclasses.replace(robot, info=info),
         sensors=slices,
+        rows=_sensor_rows(model, prefix, wheels, len(obstacles), slices),
         n_wheels=len(wheels),
         wheel_body=np.array([model.body(f"{prefix}wheel_{n}").id for n in wheels]),
         wheel_dof=np.array([model.jnt_dofadr[model.joint(prefix + n).id] for n in wheels]),

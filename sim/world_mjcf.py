@@ -39,10 +39,10 @@ def mjcf_world(scenario: Scenario) -> mjcf.RootElement:
     obstacle_bodies = [_add_obstacle(arena, i, ob) for i, ob in enumerate(obstacles)]
     if rough:
         _keep_obstacles_off_heightfield(robot, obstacles, obstacle_bodies)
-    transients = _add_transients(arena, scenario)
+    _add_transients(arena, scenario)
     _attach_robot(arena, robot, scenario.route.start)
     _add_tyre_pairs(arena, robot)
-    _add_sensors(arena, robot, obstacle_bodies, transients)
+    _add_sensors(arena, robot)
     return arena
 
 
@@ -91,47 +91,17 @@ def _attach_robot(arena: mjcf.RootElement, robot: BuiltRobot, start: tuple[float
     frame.add("freejoint", name="root")
 
 
-def _add_sensors(
-    arena: mjcf.RootElement, robot: BuiltRobot, obstacle_bodies: list[mjcf.Element], transients: mjcf.Element
-) -> None:
-    """Every sensor, in the order `sim.world.SensorSlices` lays out: wheels, base, IMU, mics, obstacles,
-    contacts."""
+def _add_sensors(arena: mjcf.RootElement, robot: BuiltRobot) -> None:
+    """MuJoCo's sensors of the world (`sim.world._sensors_xml`): the base's velocity, the IMU, the count of
+    the step's contacts."""
     base = robot.model.find("body", "base")
-    wheels = robot.info.wheel_names
-    sensor = arena.sensor
-    for name in wheels:
-        sensor.add("jointpos", name=f"angle_{name}", joint=robot.model.find("joint", name))
-    for name in wheels:
-        sensor.add("jointvel", name=f"speed_{name}", joint=robot.model.find("joint", name))
-    for name in wheels:
-        sensor.add("actuatorfrc", name=f"torque_{name}", actuator=robot.model.find("actuator", name))
     imu = robot.model.find("site", "imu")
-    sensor.add("framepos", name="base_pos", objtype="xbody", objname=base)
-    sensor.add("framequat", name="base_quat", objtype="xbody", objname=base)
+    sensor = arena.sensor
     sensor.add("framelinvel", name="base_linvel", objtype="xbody", objname=base)
     sensor.add("gyro", name="gyro", site=imu)
     sensor.add("accelerometer", name="acc", site=imu)
     sensor.add("velocimeter", name="vel", site=imu)
-    sensor.add("framepos", name="mic_left", objtype="site", objname=robot.model.find("site", "mic_left"))
-    sensor.add("framepos", name="mic_right", objtype="site", objname=robot.model.find("site", "mic_right"))
-    for i, body in enumerate(obstacle_bodies):
-        sensor.add("framepos", name=f"obstacle_pos_{i}", objtype="xbody", objname=body)
-    for i, body in enumerate(obstacle_bodies):
-        sensor.add(
-            "contact", name=f"hit_{i}", subtree1=base, body2=body, data="found force pos",
-            reduce="netforce", num=1,
-        )  # fmt: skip
-    for name in wheels:
-        sensor.add(
-            "contact", name=f"bump_{name}", geom1=robot.model.find("geom", name), body2=transients,
-            data="found force pos", reduce="netforce", num=1,
-        )  # fmt: skip
-    floor = arena.worldbody.find("geom", "floor")
-    for name in wheels:
-        sensor.add(
-            "contact", name=f"tyre_{name}", geom1=robot.model.find("geom", name), geom2=floor,
-            data="found force pos", reduce="netforce", num=1,
-        )  # fmt: skip
+    sensor.add("contact", name="contacts", data="found", num=1)
 
 
 def _arena(scenario: Scenario) -> mjcf.RootElement:

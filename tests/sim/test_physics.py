@@ -11,6 +11,7 @@ from sim import simulate, vocab
 from sim.engine import CONTROL_STEPS, Engine
 from sim.events import contact_events
 from sim.scenario import Obstacle, Scenario, Unit
+from sim.stepper import sensor_row
 from sim.world import build_world
 
 
@@ -18,7 +19,7 @@ def _constant_drive(scenario: Scenario, v: float, w: float, seconds: float) -> t
     world = build_world(scenario)
     engine = Engine(world, scenario)
     n = round(seconds / engine.dt / CONTROL_STEPS) * CONTROL_STEPS
-    out = np.empty((n, world.model.nsensordata))
+    out = np.empty((n, world.sensors.width))
     for start in range(0, n, CONTROL_STEPS):
         engine.step(np.array(engine.wheel_commands(v, w)), out[start : start + CONTROL_STEPS])
     return engine, out
@@ -86,8 +87,9 @@ def test_collision_impulse_matches_momentum_change() -> None:
     engine.data.qvel[world.root_dof] = v0
     engine.data.qvel[world.wheel_dof] = v0 / info.wheel_radius
     mujoco.mj_forward(m, engine.data)  # the engine steps on from its data
+    engine.sensordata = sensor_row(world, engine.data)  # and its sensors
     n = 40 * CONTROL_STEPS
-    out = np.empty((n, m.nsensordata))
+    out = np.empty((n, world.sensors.width))
     for start in range(0, n, CONTROL_STEPS):
         engine.step(np.zeros(world.n_wheels), out[start : start + CONTROL_STEPS])
     sl = world.sensors

@@ -2,7 +2,7 @@
 
 `run_route` records through a cache-sized buffer moved block by block, keeps contact force and centroid only
 in blocks with a contact and builds the wheel commands as Python floats; each must give exactly what one
-(n, nsensordata) array of every step and the numpy formula give. Likewise the shortcuts in the faults'
+(n, row width) array of every step and the numpy formula give. Likewise the shortcuts in the faults'
 forcing, the obstacle velocities and the IMU's decimation.
 """
 
@@ -34,7 +34,7 @@ def test_recording_matches_one_array_of_every_step(preset: str, monkeypatch: pyt
     monkeypatch.setattr(engine, "step", step_and_keep)
     trace = assemble_trace(scenario, world, run_route(engine, scenario), engine.dt)
     replay = Engine(world, scenario)
-    full = np.empty((sum(k for _, k in periods), world.model.nsensordata))
+    full = np.empty((sum(k for _, k in periods), world.sensors.width))
     start = 0
     for wheel_cmd, k in periods:
         replay.step(wheel_cmd, full[start : start + k])
@@ -83,7 +83,7 @@ def test_faults_outside_their_window_leave_zero_wrenches() -> None:
     scenario = scenario_presets()["fault_loose_wheel"](0)
     engine = Engine(build_world(scenario), scenario)
     onset = engine.forcings[0].record.onset
-    out = np.empty((CONTROL_STEPS, engine.model.nsensordata))
+    out = np.empty((CONTROL_STEPS, engine.world.sensors.width))
     wrenches = slice(engine.model.nu, engine.ncontrol)
     while engine.time + CONTROL_STEPS * engine.dt < onset:
         engine.step(engine.wheel_commands(0.5, 0.0), out)

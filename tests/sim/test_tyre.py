@@ -10,6 +10,7 @@ from sim_kit import straight
 
 from sim.engine import CONTROL_STEPS, Engine
 from sim.scenario import Scenario
+from sim.stepper import add_tyre_forces, sensor_row
 from sim.tyre import TYRE_SLIP_SPEED
 from sim.world import SURFACES, World, build_world
 
@@ -18,7 +19,7 @@ def _settled(scenario: Scenario) -> tuple[World, Engine]:
     """The robot at rest on its tyres (it starts 2 mm above the floor), motors holding still."""
     world = build_world(scenario)
     engine = Engine(world, scenario)
-    out = np.empty((CONTROL_STEPS, world.model.nsensordata))
+    out = np.empty((CONTROL_STEPS, world.sensors.width))
     for _ in range(8):
         engine.step(np.zeros(world.n_wheels), out)
     return world, engine
@@ -33,15 +34,16 @@ def test_the_grip_is_the_regularised_coulomb_law_at_each_contact_point() -> None
     data.qvel[world.wheel_dof] = rng.normal(0.0, 10.0, world.n_wheels)
     mujoco.mj_forward(model, data)
     data.xfrc_applied[:] = 0.0
-    engine._stepper.add_tyre_forces()
+    row = sensor_row(world, data)
+    add_tyre_forces(model, data, engine.tyres, row)
     table = engine.tyres.table
     dt = model.opt.timestep
     velocity = np.zeros(6)
     for w in range(world.n_wheels):
         body = int(world.wheel_body[w])
         s = world.sensors.tyre_contact + 7 * w
-        assert data.sensordata[s] >= 1  # the wheel stands on the floor
-        force, point = data.sensordata[s + 1 : s + 4], data.sensordata[s + 4 : s + 7]
+        assert row[s] >= 1  # the wheel stands on the floor
+        force, point = row[s + 1 : s + 4], row[s + 4 : s + 7]
         normal_force = np.linalg.norm(force)
         n = force / normal_force * np.sign(force[2])
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
@@ -65,7 +67,8 @@ def test_a_robot_sliding_on_locked_wheels_decelerates_at_mu_g() -> None:
     world, engine = _settled(scenario)
     engine.data.qvel[world.root_dof] = 2.0
     mujoco.mj_forward(world.model, engine.data)
-    out = np.empty((5 * CONTROL_STEPS, world.model.nsensordata))
+    engine.sensordata = sensor_row(world, engine.data)
+    out = np.empty((5 * CONTROL_STEPS, world.sensors.width))
     for start in range(0, len(out), CONTROL_STEPS):
         engine.step(np.zeros(world.n_wheels), out[start : start + CONTROL_STEPS])
     speed = out[:, world.sensors.base_linvel]

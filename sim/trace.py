@@ -293,10 +293,17 @@ class Trace:
 
         Render audio from this, not from the simulator's trace, and a re-render from the file is identical.
         """
-        stored = trace_storage.decode(self._stored_arrays(), TRACE_FORMAT_VERSION)
-        return typing.cast(Trace, _unflatten(Trace, stored, ""))
+        arrays = self._stored_arrays()
+        stored = typing.cast(Trace, _unflatten(Trace, trace_storage.decode(arrays, TRACE_FORMAT_VERSION), ""))
+        object.__setattr__(stored, "_stored", arrays)  # what its `save` writes (encoding it again gives them)
+        return stored
 
     def _stored_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays `save` writes: those this trace was decoded from (`at_storage_precision`), else its
+        encoding."""
+        kept: dict[str, np.ndarray] | None = self.__dict__.get("_stored")
+        if kept is not None:
+            return kept
         arrays = trace_storage.encode(_flatten(self))
         arrays["format_version"] = np.asarray(TRACE_FORMAT_VERSION, dtype=np.int64)
         return arrays

@@ -16,6 +16,8 @@ the same within float32 rounding (tests/synth_audio/test_reverb.py checks them a
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.fft as sfft
 
@@ -61,8 +63,7 @@ class Room:
         self.bins = low // 2
         spec = sfft.rfft(ir, low, axis=-1)[:, : self.bins]
         self.spectrum = (spec * np.float32(np.sqrt(DECIMATION))).astype(np.complex64)
-        self.twiddles = np.empty((DECIMATION, self.bins), dtype=np.complex64)
-        kernels.twiddles_into(self.nfft, self.twiddles)
+        self.twiddles = _twiddles(self.nfft, self.bins)
 
     def send_spectrum(self, send: np.ndarray) -> np.ndarray:
         """Low band of the spectrum of a mono full-rate send (what the room responds to): `rfft(send,
@@ -112,3 +113,13 @@ class Room:
     def apply(self, send: np.ndarray) -> np.ndarray:
         """(2, n) reverberation of a mono full-rate send."""
         return self.wet(self.send_spectrum(send))
+
+
+@functools.lru_cache(maxsize=4)
+def _twiddles(nfft: int, bins: int) -> np.ndarray:
+    """The (DECIMATION, bins) read-only `kernels.twiddles_into` factors of a length; kept for the next rooms
+    of episodes as long (a dataset's episodes come in a few lengths)."""
+    out = np.empty((DECIMATION, bins), dtype=np.complex64)
+    kernels.twiddles_into(nfft, out)
+    out.flags.writeable = False
+    return out

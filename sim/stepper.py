@@ -4,12 +4,14 @@ The simulator steps the physics in control periods of a few steps, with the cont
 (`sim.engine`). `mujoco.rollout` costs microseconds per call beyond the steps themselves (its arguments
 converted, the state set from an array and read back, the solver's warm start cleared); this loop
 writes each step's controls into the `MjData` arrays, adds the tyres' grip (`sim.tyre`), calls `mj_step`
-and copies the sensors out, with nothing else between the steps. The data carries on from period to period
-(the solver's warm start included), as a plain `mj_step` loop does.
+and fills the step's row of sensors (`sim.world.SensorRows`: values copied from the data, MuJoCo's IMU, the
+contact sensors computed from the step's contact list), with nothing else between the steps. The data
+carries on from period to period (the solver's warm start included), as a plain `mj_step` loop does.
 
-`mj_step` is reached by its address in the `libmujoco` the bindings load (`ctypes`), and the model and data
-by theirs (`MjModel._address`, `MjData._address`); the call is an LLVM intrinsic (`_mj_step`), so the loop
-keeps no pointer in its compiled code and numba caches it beside this module. MuJoCo's fatal errors
+`mj_step` and `mj_contactForce` are reached by their addresses in the `libmujoco` the bindings load
+(`ctypes`), and the model, the data and their arrays by theirs (`MjModel._address`, `MjData._address`); the
+calls are LLVM intrinsics, so the loop keeps no pointer in its compiled code and numba caches it beside
+this module. MuJoCo's fatal errors
 (`mju_error`) raise through the bindings but would end the process here; the one a step can meet is its
 arena running out, and the worlds reserve 8 MB (`sim.world`) where an episode uses tens of kB.
 """
@@ -438,7 +440,7 @@ class Stepper:
         if control.shape[1] != ncontrol or width != row or control.shape[0] < k:
             shapes = f"controls {control.shape}, sensors {out.shape}"
             raise ValueError(f"{shapes}: the model's rows are {self._widths} wide, at least as many controls")
-        if previous.shape[0] != row or previous.ndim != 1:
+        if previous.ndim != 1 or previous.shape[0] != row:
             raise ValueError(f"previous row {previous.shape}: a row is {row} values")
         found = _step_rows(self.layout, control, out, previous, *self._arguments)
         if found < 0.0:

@@ -8,9 +8,7 @@ Per period, Python computes the wheel speed commands, the faults' forces for eve
 
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -96,21 +94,18 @@ class Engine:
         )
         self._has_peds = len(self.ped_index) > 0
         self.time = 0.0
-        self._read: Callable[[], np.ndarray] = functools.partial(sensor_row, world, self.data)
-        """The row of sensors of the data's present state (the stepper's tables, once it is made)."""
         self.reset()
         self.tyres = tyres(world, self.data)  # at the initial state `reset` evaluated
         self._stepper = Stepper(
             world, self.data, (world.sensors.obstacle_contact, len(world.obstacles)), self.tyres
         )
-        self._read = self._stepper.read
 
     def reset(self) -> None:
         """Back to the initial state (time 0), with the sensors evaluated."""
         mujoco.mj_resetData(self.model, self.data)
         self._set_mocap(self.data.mocap_pos, np.zeros(1))
         mujoco.mj_forward(self.model, self.data)
-        self.sensordata = self._read()
+        self.sensordata = sensor_row(self.world, self.data)
         self.time = 0.0
         self._ped_track = np.zeros((0, len(self.ped_index), 3))
         self._stepped_back = {}

@@ -422,10 +422,6 @@ class Stepper:
         # divergence is reported instead (NaN sensors).
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
 
-    def read(self) -> np.ndarray:
-        """The row of sensors of the data's present state (`sensor_row`)."""
-        return self._rows.read()
-
     def run(self, control: np.ndarray, out: np.ndarray, previous: np.ndarray) -> bool:
         """Step once per row of `control` ((k, ncontrol), `CONTROL_SPEC` order, C-contiguous rows), the
         row of sensors after each step into the rows of `out` ((k, width), C-contiguous); `previous`: the
